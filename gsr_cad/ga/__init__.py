@@ -1,0 +1,1 @@
+"""Problem-agnostic genetic algorithm engine: genes are opaque hashable items."""

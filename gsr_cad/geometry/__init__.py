@@ -1,0 +1,1 @@
+"""Geometry kernel (numpy/scipy only): curves, polygon meshes, Catmull-Clark subdivision, distances."""

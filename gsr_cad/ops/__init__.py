@@ -1,0 +1,1 @@
+"""Modelling operations: frozen dataclasses around pure functions, registered by name."""

@@ -1,0 +1,1 @@
+"""Reconstruction problems and the public API."""

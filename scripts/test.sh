@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Install everything (package, dev/cad extras, CAD hosts when root) and run the whole test suite.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-hosts.sh
+bash scripts/venv.sh "dev,cad"
+.venv/bin/lint-imports --config pyproject.toml
+exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" "$@"
