@@ -1,0 +1,73 @@
+"""Finding and running the CAD hosts (Blender, FreeCAD, OpenSCAD) as independent judges.
+
+Each runner raises :class:`~gsr_cad.errors.ExportError` with one line when the host is missing, times
+out or reports failure, so the CLI can print it and tests can tell "host absent" from "check failed".
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+from gsr_cad.errors import ExportError
+
+_EXECUTABLES = {"blender": "blender", "freecad": "freecadcmd", "openscad": "openscad"}
+
+
+def find_host(name: str) -> str | None:
+    """Path of a host's executable (``GSR_<NAME>`` overrides), or None when it is not installed."""
+    override = os.environ.get(f"GSR_{name.upper()}")
+    if override:
+        return override if Path(override).exists() else None
+    return shutil.which(_EXECUTABLES[name])
+
+
+def _run(cmd: list[str], host: str, timeout: float, cwd: str | None = None) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env.setdefault("QT_QPA_PLATFORM", "offscreen")
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=env,
+                              stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise ExportError(f"{host} did not finish within {timeout:.0f} s") from None
+    except OSError as exc:
+        raise ExportError(f"cannot run {host}: {exc.strerror or exc}") from None
+    if proc.returncode != 0:
+        tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["no output"]
+        raise ExportError(f"{host} failed (exit {proc.returncode}): {tail[0]}")
+    return proc
+
+
+def _require(name: str) -> str:
+    exe = find_host(name)
+    if exe is None:
+        raise ExportError(f"{name} is not installed (Debian: apt-get install {_EXECUTABLES[name].replace('cmd', '')})")
+    return exe
+
+
+def run_blender(script: str | Path, args: Sequence[str] = (), timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run a Python script in background Blender; a Python exception in it is a failure (exit 1)."""
+    exe = _require("blender")
+    cmd = [exe, "-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script), "--", *map(str, args)]
+    return _run(cmd, "blender", timeout)
+
+
+def run_freecad(script: str | Path, args: Sequence[str] = (), timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run a macro with ``freecadcmd``; scripts must ``raise SystemExit(1)`` themselves on failure
+    (FreeCAD 0.20 exits 0 on an uncaught exception), and arguments reach them through ``GSR_ARGS``."""
+    exe = _require("freecad")
+    env_args = os.pathsep.join(map(str, args))
+    os.environ["GSR_ARGS"] = env_args
+    try:
+        return _run([exe, str(script)], "freecad", timeout)
+    finally:
+        os.environ.pop("GSR_ARGS", None)
+
+
+def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Render ``scad`` to ``out`` (format from its suffix, e.g. STL) with OpenSCAD, no display needed."""
+    exe = _require("openscad")
+    return _run([exe, "-o", str(out), str(scad)], "openscad", timeout)
