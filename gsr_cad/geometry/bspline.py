@@ -1,0 +1,178 @@
+"""Clamped uniform B-spline curves on the parameter domain [0, 1].
+
+The curve of ``n`` control points and degree ``k`` has ``n - k`` equal spans and end knots of multiplicity
+``k + 1``, so it starts on the first and ends on the last control point (the paper's clamped uniform
+B-spline). Basis matrices come from :meth:`scipy.interpolate.BSpline.design_matrix`; derivative bases
+are the degree-lowered design matrix times the exact difference operator of the control points. Matrices
+that depend only on ``(n_ctrl, n_samples, degree)`` are cached and read-only, so evaluating a candidate
+control polygon in the GA's hot loop is one small matrix product.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import BSpline
+
+from ..errors import InputError
+
+_PARAM_TOL = 1e-12
+
+
+def _check_degree(degree: int) -> int:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or degree < 1:
+        raise InputError(f"B-spline degree must be an integer >= 1, got {degree!r}")
+    return int(degree)
+
+
+def _check_n_ctrl(n_ctrl: int, degree: int) -> int:
+    if isinstance(n_ctrl, bool) or not isinstance(n_ctrl, (int, np.integer)) or n_ctrl < degree + 1:
+        raise InputError(f"a degree-{degree} B-spline needs at least {degree + 1} control points, got {n_ctrl!r}")
+    return int(n_ctrl)
+
+
+def _check_params(params: np.ndarray) -> np.ndarray:
+    """Parameters as a finite 1-D float array in [0, 1] (round-off just outside is clipped)."""
+    x = np.asarray(params, dtype=np.float64)
+    if x.ndim != 1:
+        x = x.reshape(-1)
+    if not np.all(np.isfinite(x)):
+        raise InputError("curve parameters must be finite")
+    if x.size and (x.min() < -_PARAM_TOL or x.max() > 1.0 + _PARAM_TOL):
+        raise InputError("curve parameters must lie in [0, 1]")
+    return np.clip(x, 0.0, 1.0)
+
+
+def _check_ctrl(ctrl: np.ndarray, degree: int) -> np.ndarray:
+    c = np.asarray(ctrl, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] < 1:
+        raise InputError(f"control points must be an (n, dim) array, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise InputError("control points must be finite")
+    _check_n_ctrl(len(c), degree)
+    return c
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+@functools.lru_cache(maxsize=256)
+def _knots(n_ctrl: int, degree: int) -> np.ndarray:
+    n_spans = n_ctrl - degree
+    inner = np.arange(1, n_spans, dtype=np.float64) / n_spans
+    return _readonly(np.concatenate([np.zeros(degree + 1), inner, np.ones(degree + 1)]))
+
+
+def clamped_uniform_knots(n_ctrl: int, degree: int = 3) -> np.ndarray:
+    """Knot vector on [0, 1] with ``n_ctrl - degree`` equal spans and multiplicity ``degree + 1`` at the ends."""
+    degree = _check_degree(degree)
+    return _knots(_check_n_ctrl(n_ctrl, degree), degree).copy()
+
+
+def _design(n_ctrl: int, x: np.ndarray, degree: int) -> sp.csr_array:
+    """Sparse ``(m, n_ctrl)`` basis at checked parameters ``x``."""
+    return BSpline.design_matrix(x, _knots(n_ctrl, degree), degree)
+
+
+@functools.lru_cache(maxsize=256)
+def _difference_operator(n_ctrl: int, degree: int, order: int) -> sp.csr_array:
+    """Map control points to the control points of the ``order``-th derivative curve.
+
+    One step: ``Q_i = k (P_{i+1} - P_i) / (t_{i+k+1} - t_{i+1})``; the derivative is again a clamped
+    uniform B-spline of degree ``k - 1`` on the knots ``t[1:-1]``.
+    """
+    op = sp.identity(n_ctrl, format="csr")
+    t, k, n = _knots(n_ctrl, degree), degree, n_ctrl
+    for _ in range(order):
+        scale = k / (t[k + 1:n + k] - t[1:n])
+        step = sp.diags_array([-scale, scale], offsets=[0, 1], shape=(n - 1, n), format="csr")
+        op = step @ op
+        t, k, n = t[1:-1], k - 1, n - 1
+    return sp.csr_array(op)
+
+
+def basis_matrix(n_ctrl: int, params: np.ndarray, degree: int = 3) -> np.ndarray:
+    """Dense ``(m, n_ctrl)`` matrix of the B-spline basis functions at ``params`` (curve = matrix @ ctrl)."""
+    degree = _check_degree(degree)
+    n_ctrl = _check_n_ctrl(n_ctrl, degree)
+    return _design(n_ctrl, _check_params(params), degree).toarray()
+
+
+@functools.lru_cache(maxsize=256)
+def _uniform_basis(n_ctrl: int, n_samples: int, degree: int) -> np.ndarray:
+    return _readonly(_design(n_ctrl, np.linspace(0.0, 1.0, n_samples), degree).toarray())
+
+
+def uniform_basis(n_ctrl: int, n_samples: int, degree: int = 3) -> np.ndarray:
+    """Read-only cached basis at ``linspace(0, 1, n_samples)``: the fitness's sampling matrix."""
+    degree = _check_degree(degree)
+    n_ctrl = _check_n_ctrl(n_ctrl, degree)
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 2:
+        raise InputError(f"need at least 2 curve samples, got {n_samples!r}")
+    return _uniform_basis(n_ctrl, int(n_samples), degree)
+
+
+def derivative_basis_matrix(n_ctrl: int, params: np.ndarray, degree: int = 3, order: int = 1) -> np.ndarray:
+    """Dense ``(m, n_ctrl)`` matrix of the ``order``-th parameter derivatives of the basis functions."""
+    degree = _check_degree(degree)
+    n_ctrl = _check_n_ctrl(n_ctrl, degree)
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 0:
+        raise InputError(f"derivative order must be an integer >= 0, got {order!r}")
+    x = _check_params(params)
+    if order > degree:
+        return np.zeros((x.size, n_ctrl))
+    if order == 0:
+        return _design(n_ctrl, x, degree).toarray()
+    lowered = BSpline.design_matrix(x, _knots(n_ctrl, degree)[order:-order], degree - order)
+    return (lowered @ _difference_operator(n_ctrl, degree, int(order))).toarray()
+
+
+def evaluate(ctrl: np.ndarray, params: np.ndarray, degree: int = 3) -> np.ndarray:
+    """Points ``(m, dim)`` of the curve at ``params`` in [0, 1]."""
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    return np.asarray(_design(len(c), _check_params(params), degree) @ c)
+
+
+def sample_uniform(ctrl: np.ndarray, n_samples: int, degree: int = 3) -> np.ndarray:
+    """``n_samples`` curve points at evenly spaced parameters (cached basis: one matrix product)."""
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    return uniform_basis(len(c), n_samples, degree) @ c
+
+
+def _insert_knot(t: np.ndarray, coef: np.ndarray, u: float, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Boehm's knot insertion of ``u`` (once) into a degree-``k`` spline with coefficient rows ``coef``."""
+    s = int(np.searchsorted(t, u, side="right")) - 1
+    i = np.arange(s - k + 1, s + 1)
+    alpha = ((u - t[i]) / (t[i + k] - t[i]))[:, None]
+    blended = (1.0 - alpha) * coef[i - 1] + alpha * coef[i]
+    new = np.concatenate([coef[: s - k + 1], blended, coef[s:]])
+    return np.insert(t, s + 1, u), new
+
+
+@functools.lru_cache(maxsize=128)
+def _bezier_extraction(n_ctrl: int, degree: int) -> np.ndarray:
+    """``(n_spans * (degree + 1), n_ctrl)`` matrix giving every span's Bezier points from the control points."""
+    t, coef, k = _knots(n_ctrl, degree), np.eye(n_ctrl), degree
+    for u in _knots(n_ctrl, degree)[k + 1:n_ctrl]:
+        for _ in range(k - 1):
+            t, coef = _insert_knot(t, coef, float(u), k)
+    n_spans = n_ctrl - k
+    rows = (np.arange(n_spans)[:, None] * k + np.arange(k + 1)[None, :]).ravel()
+    return _readonly(coef[rows])
+
+
+def bezier_segments(ctrl: np.ndarray, degree: int = 3) -> np.ndarray:
+    """The exact Bezier pieces ``(n_spans, degree + 1, dim)`` of the curve, span ``j`` on ``[j, j + 1] / n_spans``.
+
+    Obtained by inserting every interior knot until its multiplicity is ``degree``; used by SVG/DXF export.
+    """
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    n_spans = len(c) - degree
+    return (_bezier_extraction(len(c), degree) @ c).reshape(n_spans, degree + 1, c.shape[1])

@@ -1,0 +1,162 @@
+"""Distances between curves and points (numpy/scipy only).
+
+Curves: the paper's index-wise distance (curve sampled as often as the data, compared sample by sample),
+chord-length parameters for data that is not evenly spaced, orthogonal foot points on a clamped uniform
+B-spline (vectorized safeguarded Newton) and exact point-to-polyline distances.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from .bspline import _check_ctrl, _check_degree, _check_params, _knots, sample_uniform
+
+_DENSE_PAIRS = 1 << 13  # point-segment pairs handled by plain broadcasting before the KD-tree prunes
+_PAIR_BLOCK = 1 << 20  # candidate pairs processed at once by the pruned search (bounds memory)
+
+
+def _as_points(points: np.ndarray, what: str, dim: int | None = None) -> np.ndarray:
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] < 1 or (dim is not None and p.shape[1] != dim):
+        want = f"(n, {dim})" if dim is not None else "(n, dim)"
+        raise InputError(f"{what} must be an {want} array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise InputError(f"{what} must be finite")
+    return p
+
+
+def _check_count(value: int, what: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InputError(f"{what} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def index_wise(samples: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Euclidean distance between ``samples[i]`` and ``target[i]`` for every ``i`` (the paper's fitness terms)."""
+    s, t = np.asarray(samples, dtype=np.float64), np.asarray(target, dtype=np.float64)
+    if s.shape != t.shape or s.ndim != 2:
+        raise InputError(f"index-wise distance needs two (n, dim) arrays of one shape, got {s.shape} and {t.shape}")
+    return np.sqrt(np.einsum("ij,ij->i", s - t, s - t))
+
+
+def chord_length_params(points: np.ndarray) -> np.ndarray:
+    """Cumulative chord length of an ordered point sequence, scaled to [0, 1] (first 0, last exactly 1)."""
+    p = _as_points(points, "points")
+    if len(p) < 2:
+        raise InputError("chord-length parameters need at least 2 points")
+    seg = np.sqrt(np.einsum("ij,ij->i", np.diff(p, axis=0), np.diff(p, axis=0)))
+    total = seg.sum()
+    if not total > 0.0:
+        raise InputError("chord-length parameters need points that do not all coincide")
+    out = np.concatenate([[0.0], np.cumsum(seg)]) / total
+    out[-1] = 1.0
+    return out
+
+
+def foot_points(ctrl: np.ndarray, points: np.ndarray, params0: np.ndarray, degree: int = 3,
+                iterations: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Project each point onto the curve, starting from ``params0``; returns ``(params, distances)``.
+
+    Each iteration takes a Newton step on ``|C(t) - p|^2`` (Gauss-Newton where the Newton model is not
+    convex), clipped to [0, 1], and keeps the best of the full, half and quarter step or the current
+    parameter, so distances never grow. All points are handled at once.
+    """
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    p = _as_points(points, "points", c.shape[1])
+    t = _check_params(params0)
+    if t.shape != (len(p),):
+        raise InputError(f"need one start parameter per point, got {t.size} for {len(p)} points")
+    iterations = _check_count(iterations, "iterations", 0)
+    spline = BSpline(_knots(len(c), degree), c, degree)
+    d1 = spline.derivative(1)
+    d2 = spline.derivative(2) if degree >= 2 else None
+    pos = spline(t)
+    dist = np.linalg.norm(pos - p, axis=1)
+    fractions = np.array([1.0, 0.5, 0.25])[:, None]
+    rows = np.arange(len(p))
+    for _ in range(iterations):
+        r = pos - p
+        v1 = d1(t)
+        grad = np.einsum("ij,ij->i", r, v1)
+        gn = np.einsum("ij,ij->i", v1, v1)
+        hess = gn + (np.einsum("ij,ij->i", r, d2(t)) if d2 is not None else 0.0)
+        hess = np.where(hess > 1e-12 * gn, hess, gn)
+        step = -np.divide(grad, hess, out=np.zeros_like(grad), where=hess > 0.0)
+        cand = np.clip(t[None, :] + fractions * step[None, :], 0.0, 1.0)
+        cpos = spline(cand.ravel()).reshape(len(fractions), len(p), c.shape[1])
+        cdist = np.linalg.norm(cpos - p[None], axis=2)
+        best = np.argmin(cdist, axis=0)
+        better = cdist[best, rows] <= dist
+        t = np.where(better, cand[best, rows], t)
+        dist = np.where(better, cdist[best, rows], dist)
+        pos = np.where(better[:, None], cpos[best, rows], pos)
+    return t, dist
+
+
+def point_to_curve(ctrl: np.ndarray, points: np.ndarray, degree: int = 3, dense: int = 2048) -> np.ndarray:
+    """Geometric distance of each point to the B-spline curve (nearest of ``dense`` samples, then foot points)."""
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    p = _as_points(points, "points", c.shape[1])
+    dense = _check_count(dense, "dense", 2)
+    _, idx = cKDTree(sample_uniform(c, dense, degree)).query(p)
+    return foot_points(c, p, idx / (dense - 1), degree)[1]
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, len2: np.ndarray) -> np.ndarray:
+    """Distance of ``p[i]`` to the segment ``a[i] + s ab[i]``, ``s`` in [0, 1] (broadcasts over leading axes)."""
+    ap = p - a
+    s = np.divide((ap * ab).sum(-1), len2, out=np.zeros(np.broadcast_shapes(ap.shape[:-1], len2.shape)),
+                  where=len2 > 0.0)
+    s = np.clip(s, 0.0, 1.0)
+    return np.linalg.norm(ap - s[..., None] * ab, axis=-1)
+
+
+def point_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Exact distance of each point to an open polyline (its segments, end points included)."""
+    p = _as_points(points, "points")
+    q = _as_points(polyline, "polyline", p.shape[1])
+    if len(q) == 0:
+        raise InputError("polyline needs at least one point")
+    if len(q) == 1:
+        return np.linalg.norm(p - q[0], axis=1)
+    a, ab = q[:-1], np.diff(q, axis=0)
+    len2 = np.einsum("ij,ij->i", ab, ab)
+    n_seg = len(a)
+    if len(p) * n_seg <= _DENSE_PAIRS:
+        return _segment_distance(p[:, None, :], a[None], ab[None], len2[None]).min(axis=1)
+    # Prune with a KD-tree on midpoints of pieces no longer than the mean segment (at most 2 * n_seg
+    # pieces): a segment can beat the upper bound ``ub`` only if one of its pieces has its midpoint
+    # within ``ub + longest piece half-length`` of the point.
+    length = np.sqrt(len2)
+    mean = length.mean()
+    n_pieces = np.maximum(1, np.ceil(length / mean).astype(np.int64)) if mean > 0.0 else np.ones(n_seg, np.int64)
+    parent = np.repeat(np.arange(n_seg), n_pieces)
+    first = np.repeat(np.cumsum(n_pieces) - n_pieces, n_pieces)
+    frac = (np.arange(len(parent)) - first + 0.5) / n_pieces[parent]
+    tree = cKDTree(a[parent] + frac[:, None] * ab[parent])
+    _, near = tree.query(p)
+    near = parent[near]
+    ub = _segment_distance(p, a[near], ab[near], len2[near])
+    radius = ub + 0.5 * (length / n_pieces).max() * (1.0 + 1e-9) + 1e-12
+    counts = tree.query_ball_point(p, radius, return_length=True)
+    out = ub.copy()
+    # Candidate pairs are gathered in blocks of consecutive points holding about _PAIR_BLOCK pairs each.
+    block = np.searchsorted(np.cumsum(counts), np.arange(_PAIR_BLOCK, counts.sum() + _PAIR_BLOCK, _PAIR_BLOCK))
+    bounds = np.unique(np.concatenate([[0], np.minimum(block + 1, len(p)), [len(p)]]))
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        c = counts[lo:hi]
+        lists = tree.query_ball_point(p[lo:hi], radius[lo:hi], return_sorted=False)
+        pi = np.repeat(np.arange(lo, hi), c)
+        si = parent[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=int(c.sum()))]
+        d = _segment_distance(p[pi], a[si], ab[si], len2[si])
+        has = c > 0
+        starts = (np.cumsum(c) - c)[has]
+        out[lo:hi][has] = np.minimum(out[lo:hi][has], np.minimum.reduceat(d, starts))
+    return out

@@ -1,0 +1,228 @@
+"""Configuration of the curve reconstruction, with the paper's settings and our default preset.
+
+Every field is also a CLI flag (``--field-name``). ``preset="paper"`` reproduces the paper's algorithm
+exactly (index-wise fitness, random positions, no polish); ``preset="default"`` keeps the paper's GA but
+evaluates each genome after a least-squares placement of its control points (Lamarckian evaluation) with a
+geometric fitness that does not assume evenly spaced samples, and chooses the number of control points by
+a penalised error (see :mod:`gsr_cad.reconstruct.curve`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Literal
+
+from ..errors import ConfigError
+
+PRESETS = ("default", "paper")
+
+
+@dataclasses.dataclass(frozen=True)
+class CurveConfig:
+    """All settings of a curve reconstruction (see the module docstring for the presets)."""
+
+    scheme: Literal["bspline", "chaikin"] = "bspline"
+    fitness: Literal["geometric", "index"] = "geometric"
+    polish: bool = True
+    tolerance: float = 1e-5
+    max_distance: float | None = None
+    bounds_margin: float = 1.0
+    local_add: bool = True
+    p_add: float = 0.5
+    move_scale: float = 0.25
+    max_control_points: int = 0
+    fit_iterations: int = 25
+    initial_population: int = 1000
+    population: int = 100
+    min_initial_ops: int = 4
+    max_initial_ops: int = 8
+    min_ops: int = 3
+    elite_fraction: float = 0.2
+    mutation_rate: float = 0.05
+    delete_rate: float = 0.01
+    append_rate: float = 0.05
+    generations: int = 100
+    threshold: float = 0.0
+    stall_generations: int = 15
+    max_seconds: float = 0.0
+
+    @classmethod
+    def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
+        """A named preset with field overrides (unknown fields raise ConfigError)."""
+        if name not in PRESETS:
+            raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
+        base: dict[str, Any] = {}
+        if name == "paper":
+            base = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=1.0,
+                        generations=300, stall_generations=0, threshold=-1.0)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise ConfigError(f"unknown curve setting(s): {', '.join(unknown)}")
+        base.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**base).validated()
+
+    def validated(self) -> CurveConfig:
+        """Return self, or raise ConfigError naming the first absurd setting."""
+        def bad(msg: str) -> ConfigError:
+            return ConfigError(msg)
+
+        if self.scheme not in ("bspline", "chaikin"):
+            raise bad(f"scheme must be bspline or chaikin, not {self.scheme!r}")
+        if self.fitness not in ("geometric", "index"):
+            raise bad(f"fitness must be geometric or index, not {self.fitness!r}")
+        for name in ("initial_population", "population", "generations", "min_ops", "min_initial_ops",
+                     "max_initial_ops", "fit_iterations"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise bad(f"{name.replace('_', '-')} must be a positive whole number, not {value!r}")
+        if self.population < 2:
+            raise bad("population must be at least 2")
+        if self.initial_population < self.population:
+            raise bad("initial-population must be at least the population")
+        if self.max_initial_ops < self.min_initial_ops:
+            raise bad("max-initial-ops must be >= min-initial-ops")
+        for name in ("mutation_rate", "delete_rate", "append_rate", "p_add"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+                raise bad(f"{name.replace('_', '-')} must lie in [0, 1], not {value!r}")
+        if not (0.0 < self.elite_fraction < 1.0):
+            raise bad(f"elite-fraction must lie in (0, 1), not {self.elite_fraction!r}")
+        for name in ("tolerance", "bounds_margin", "move_scale", "max_seconds"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise bad(f"{name.replace('_', '-')} must be a finite number >= 0, not {value!r}")
+        if self.max_distance is not None and not (math.isfinite(self.max_distance) and self.max_distance > 0):
+            raise bad(f"max-distance must be a positive number, not {self.max_distance!r}")
+        if not math.isfinite(self.threshold):
+            raise bad("threshold must be finite")
+        if self.stall_generations < 0 or self.max_control_points < 0:
+            raise bad("stall-generations and max-control-points must be >= 0")
+        if self.max_control_points and self.max_control_points < 4:
+            raise bad("max-control-points must be at least 4 (the template has 4)")
+        return self
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+# --- surfaces ------------------------------------------------------------------------------------------------
+
+SURFACE_FITNESS = ("surface", "mixed")
+
+
+@dataclasses.dataclass(frozen=True)
+class SurfaceConfig:
+    """All settings of a surface reconstruction (see :mod:`gsr_cad.reconstruct.surface` for the presets).
+
+    The GA fields default to the paper's surface settings (section 5). ``fitness`` "surface" is the
+    symmetric point-to-surface distance, "mixed" the paper's mixed mean distance (both normalized by the
+    target's bounding-box diagonal). ``polish_rounds`` > 0 scores every genome after that many
+    least-squares rounds on its control vertices (the genome keeps its own positions; the winner gets
+    the polish written back as ``translate_vertex`` ops, ``final_polish_rounds`` of them).
+    ``polish_every`` = k > 0 also writes the polish back into the best genome every k generations.
+    The op ranges are fractions of the target's bounding-box diagonal (see
+    :class:`~gsr_cad.ops.mesh.OpRanges`).
+    """
+
+    template_fit: Literal["box", "cube"] = "box"
+    levels: int = 2
+    boundary: Literal["all", "corners"] = "all"
+    fitness: Literal["surface", "mixed"] = "surface"
+    op_kinds: str = "VELBIFS"
+    move_range: float = 0.1
+    extrude_range: float = 0.5
+    inward_rate: float = 0.2
+    face_move_range: float = 0.1
+    max_scale_factor: float = 1.25
+    perturb_rel: float = 0.02
+    max_control_faces: int = 120
+    max_target_points: int = 3000
+    polish_rounds: int = 3
+    final_polish_rounds: int = 30
+    polish_every: int = 0
+    polish_damping: float = 1e-3
+    population: int = 100
+    initial_population: int = 100
+    min_initial_ops: int = 1
+    max_initial_ops: int = 2
+    min_ops: int = 1
+    n_parents: int = 20
+    max_children: int = 10
+    n_perturb: int = 10
+    n_newcomers: int = 10
+    max_duplicates: int = 3
+    mutation_rate: float = 0.05
+    delete_rate: float = 0.01
+    append_rate: float = 0.1
+    generations: int = 200
+    threshold: float = 1e-5
+    stall_generations: int = 0
+    max_seconds: float = 0.0
+
+    @classmethod
+    def preset(cls, name: str = "default", **overrides: Any) -> SurfaceConfig:
+        """A named preset with field overrides (unknown fields raise ConfigError)."""
+        if name not in PRESETS:
+            raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
+        base: dict[str, Any] = {}
+        if name == "paper":
+            base = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
+                        polish_rounds=0, final_polish_rounds=0, threshold=0.0)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise ConfigError(f"unknown surface setting(s): {', '.join(unknown)}")
+        base.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**base).validated()
+
+    def validated(self) -> SurfaceConfig:
+        """Return self, or raise ConfigError naming the first absurd setting."""
+        def name_of(field: str) -> str:
+            return field.replace("_", "-")
+
+        choices = {"template_fit": ("box", "cube"), "boundary": ("all", "corners"), "fitness": SURFACE_FITNESS}
+        for field, allowed in choices.items():
+            if getattr(self, field) not in allowed:
+                raise ConfigError(f"{name_of(field)} must be one of {', '.join(allowed)}, not {getattr(self, field)!r}")
+        kinds = self.op_kinds
+        if not isinstance(kinds, str) or not kinds or any(k not in "VELBIFS" for k in kinds) or len(set(kinds)) != len(kinds):
+            raise ConfigError(f"op-kinds must be distinct letters from VELBIFS, not {kinds!r}")
+        for field in ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
+                      "polish_every", "population", "initial_population", "min_initial_ops", "max_initial_ops",
+                      "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers", "max_duplicates",
+                      "generations", "stall_generations"):
+            value = getattr(self, field)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise ConfigError(f"{name_of(field)} must be a whole number >= 0, not {value!r}")
+        for field in ("levels", "population", "initial_population", "min_initial_ops", "min_ops", "n_parents",
+                      "max_duplicates", "generations", "max_control_faces"):
+            if getattr(self, field) < 1:
+                raise ConfigError(f"{name_of(field)} must be at least 1, not {getattr(self, field)!r}")
+        if self.levels > 4:
+            raise ConfigError(f"levels must be at most 4 (each level quadruples the faces), not {self.levels}")
+        if self.max_target_points and self.max_target_points < 4:
+            raise ConfigError("max-target-points must be 0 (all) or at least 4")
+        if self.population < 2:
+            raise ConfigError("population must be at least 2")
+        if self.max_initial_ops < self.min_initial_ops:
+            raise ConfigError("max-initial-ops must be >= min-initial-ops")
+        if self.n_parents > self.population or self.n_perturb > self.population:
+            raise ConfigError("n-parents and n-perturb must not exceed the population")
+        for field in ("mutation_rate", "delete_rate", "append_rate", "inward_rate"):
+            value = getattr(self, field)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+                raise ConfigError(f"{name_of(field)} must lie in [0, 1], not {value!r}")
+        for field in ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
+                      "max_seconds"):
+            value = getattr(self, field)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ConfigError(f"{name_of(field)} must be a finite number >= 0, not {value!r}")
+        if not (isinstance(self.max_scale_factor, (int, float)) and math.isfinite(self.max_scale_factor)
+                and self.max_scale_factor >= 1.0):
+            raise ConfigError(f"max-scale-factor must be a finite number >= 1, not {self.max_scale_factor!r}")
+        return self
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)

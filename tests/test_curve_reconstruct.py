@@ -1,0 +1,95 @@
+"""The curve reconstruction API end to end on small, seeded problems."""
+
+import numpy as np
+import pytest
+from scipy.interpolate import BSpline
+
+from gsr_cad import genome as genome_mod
+from gsr_cad.errors import ConfigError, InputError
+from gsr_cad.geometry.bspline import clamped_uniform_knots
+from gsr_cad.ops.curve import AddPoint, MovePoint
+from gsr_cad.reconstruct.curve import CurveProblem, reconstruct_curve
+from gsr_cad.reconstruct.config import CurveConfig
+from gsr_cad.reconstruct.inputs import curve_target
+from gsr_cad.reconstruct.result import Result
+
+FAST = dict(initial_population=200, population=40, generations=40, stall_generations=8)
+
+
+def bspline_points(n_ctrl, m=200, seed=0):
+    rng = np.random.default_rng(seed)
+    ctrl = np.column_stack([np.linspace(0, 10, n_ctrl), rng.uniform(-3, 3, n_ctrl)])
+    return ctrl, BSpline(clamped_uniform_knots(n_ctrl, 3), ctrl, 3)(np.linspace(0, 1, m))
+
+
+@pytest.mark.parametrize("n_ctrl", [5, 8])
+def test_default_finds_exact_count_and_replays(n_ctrl):
+    ctrl, pts = bspline_points(n_ctrl)
+    result = reconstruct_curve(pts, seed=1, **FAST)
+    assert result.metrics["n_control_points"] == n_ctrl
+    assert result.metrics["mean_distance"] < 1e-6
+    np.testing.assert_allclose(result.control_points, ctrl, atol=1e-6 * np.ptp(pts[:, 0]))
+    template = CurveProblem(curve_target(pts), CurveConfig.preset("default")).template
+    np.testing.assert_array_equal(genome_mod.replay(template, result.genome).points, result.control_points)
+    kinds = [type(op) for op in result.genome]
+    assert AddPoint in kinds and MovePoint in kinds
+
+
+def test_seed_reproducible_and_json_round_trip(tmp_path):
+    _, pts = bspline_points(6, seed=4)
+    a = reconstruct_curve(pts, seed=7, **FAST)
+    b = reconstruct_curve(pts, seed=7, **FAST)
+    assert a.genome == b.genome
+    a.save(tmp_path)
+    back = Result.load(tmp_path / "result.json")
+    assert back.genome == a.genome
+    np.testing.assert_array_equal(back.control_points, a.control_points)
+    assert [h["generation"] for h in back.history] == [h["generation"] for h in a.history]
+
+
+def test_paper_preset_runs_the_papers_ga():
+    _, pts = bspline_points(5, m=100, seed=2)
+    result = reconstruct_curve(pts, preset="paper", seed=3, initial_population=200, population=30, generations=15)
+    assert result.config["fitness"] == "index" and result.config["polish"] is False
+    assert all(isinstance(op, (AddPoint, MovePoint)) for op in result.genome)
+    problem = CurveProblem(curve_target(pts), CurveConfig.preset("paper"))
+    samples = BSpline(clamped_uniform_knots(len(result.control_points), 3), result.control_points, 3)(
+        np.linspace(0, 1, len(pts)))
+    assert result.metrics["fitness"] == pytest.approx(np.linalg.norm(samples - pts, axis=1).sum(), rel=1e-9)
+    assert problem.cost(result.genome) == pytest.approx(result.metrics["fitness"], rel=1e-12)
+    best = [h["best_fitness"] for h in result.history]
+    assert all(b2 <= b1 + 1e-12 for b1, b2 in zip(best, best[1:]))
+
+
+def test_noisy_data_not_overfitted():
+    ctrl, clean = bspline_points(7, seed=5)
+    diag = np.linalg.norm(np.ptp(clean, axis=0))
+    noisy = clean + np.random.default_rng(0).normal(0, 0.007 * diag, clean.shape)
+    result = reconstruct_curve(noisy, seed=2, **FAST)
+    assert abs(result.metrics["n_control_points"] - 7) <= 1
+
+
+def test_interrupt_keeps_best(monkeypatch):
+    _, pts = bspline_points(6)
+    calls = {"n": 0}
+
+    def progress(report):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+
+    result = reconstruct_curve(pts, seed=1, progress=progress, **FAST)
+    assert result.interrupted
+    assert len(result.control_points) >= 4
+
+
+def test_bad_config_and_input():
+    _, pts = bspline_points(6)
+    with pytest.raises(ConfigError):
+        reconstruct_curve(pts, population=-5)
+    with pytest.raises(ConfigError):
+        reconstruct_curve(pts, generations=0)
+    with pytest.raises(ConfigError):
+        reconstruct_curve(pts, preset="nonsense")
+    with pytest.raises(InputError):
+        reconstruct_curve(pts[:3])
