@@ -5,4 +5,4 @@ cd "$(dirname "$0")/.."
 bash scripts/install-hosts.sh
 bash scripts/venv.sh "dev,cad"
 .venv/bin/lint-imports --config pyproject.toml
-exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" "$@"
+exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" --dist loadgroup "$@"

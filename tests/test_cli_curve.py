@@ -19,7 +19,7 @@ def curve_csv(tmp_path):
     ctrl = np.array([[0, 0], [1, 2], [3, 2.5], [4, -1], [6, 0.5], [7, 2]], float)
     pts = BSpline(clamped_uniform_knots(len(ctrl), 3), ctrl, 3)(np.linspace(0, 1, 150))
     path = tmp_path / "pts.csv"
-    path.write_text("x,y\n" + "\n".join(f"{x!r},{y!r}" for x, y in pts) + "\n")
+    path.write_text("x,y\n" + "\n".join(f"{x:.17g},{y:.17g}" for x, y in pts) + "\n")
     truth = tmp_path / "truth.csv"
     truth.write_text("x,y\n" + "\n".join(f"{x},{y}" for x, y in ctrl) + "\n")
     return path, truth, ctrl

@@ -102,7 +102,7 @@ class Topology:
         n_he = len(self.he_origin)
         seen = np.zeros(n_he, dtype=bool)
         fans = np.zeros(self.n_vertices, dtype=np.int64)
-        start_candidates = np.where(self.he_twin[self.he_prev] < 0)[0]  # boundary fans start here
+        start_candidates = np.where(self.he_twin < 0)[0]  # boundary fans start at a boundary half-edge
         for starts in (start_candidates, np.arange(n_he)):
             for h in starts:
                 if seen[h]:

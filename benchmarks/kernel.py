@@ -1,0 +1,209 @@
+"""Kernel benchmark: how fast the geometry hot paths run, one table for every section.
+
+Sections are functions ``(quick) -> list[Row]`` registered in ``SECTIONS``; a new section (say, op replay)
+adds one function and one entry, and its rows land in the same table. A row is one measurement: how many
+calls per second, and the time of one call (best of several repeats of a timed loop).
+
+* ``subdivision``: Catmull-Clark level 3 with limit positions (:func:`limit_mesh`) on meshes of 6 to 500
+  faces. *cached*: a fresh PolyMesh with known connectivity each call (key, LRU hit, one sparse product,
+  the output PolyMesh); *uncached*: the cache cleared before each call (matrices and topology rebuilt);
+  *product*: the sparse product alone (``CatmullClark.limit``).
+
+    python benchmarks/kernel.py                      # every section -> benchmarks/results/kernel.md
+    python benchmarks/kernel.py --quick --sections subdivision
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import platform
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import scipy
+
+from gsr_cad.atomic import write_text
+from gsr_cad.geometry import subdivision
+from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
+
+RESULTS = Path(__file__).resolve().parent / "results" / "kernel.md"
+
+
+@dataclasses.dataclass
+class Row:
+    section: str
+    case: str
+    faces: int
+    what: str
+    seconds: float  # one call
+    note: str = ""
+
+    @property
+    def per_second(self) -> float:
+        return 1.0 / self.seconds
+
+
+def timeit(fn: Callable[[], object], budget: float, repeats: int = 5) -> float:
+    """Seconds per call of ``fn``: the best of ``repeats`` loops sized to take about ``budget / repeats``."""
+    fn()
+    start = time.perf_counter()
+    fn()
+    once = max(time.perf_counter() - start, 1e-7)
+    n = max(1, int(budget / repeats / once))
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = min(best, (time.perf_counter() - start) / n)
+    return best
+
+
+# --- meshes -------------------------------------------------------------------------------------------
+
+
+def torus(n: int, m: int, triangles: bool = False) -> PolyMesh:
+    """An ``n`` x ``m`` quad torus; with ``triangles`` every other quad split in two."""
+    u, w = np.meshgrid(np.linspace(0, 2 * np.pi, n + 1)[:-1], np.linspace(0, 2 * np.pi, m + 1)[:-1], indexing="ij")
+    v = np.stack([(2 + np.cos(w)) * np.cos(u), (2 + np.cos(w)) * np.sin(u), np.sin(w)], axis=-1).reshape(-1, 3)
+    faces = []
+    for i in range(n):
+        for j in range(m):
+            q = [i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m]
+            faces += [q[:3], [q[0], q[2], q[3]]] if triangles and (i + j) % 2 else [q]
+    return PolyMesh.from_faces(v, faces)
+
+
+def inset_extruded_cube() -> PolyMesh:
+    """The template cube after an inset and an extrusion of its top face (14 faces, irregular vertices)."""
+    c = unit_cube()
+    ring = c.vertices[[4, 5, 7, 6]] * [0.6, 0.6, 1]
+    cap = ring + [0, 0, 0.6]
+    faces = [list(f) for f in c.faces[:5]] + [[4, 5, 9, 8], [5, 7, 10, 9], [7, 6, 11, 10], [6, 4, 8, 11]]
+    faces += [[8, 9, 13, 12], [9, 10, 14, 13], [10, 11, 15, 14], [11, 8, 12, 15], [12, 13, 14, 15]]
+    return PolyMesh.from_faces(np.vstack([c.vertices, ring, cap]), faces)
+
+
+def subdivision_meshes(quick: bool) -> dict[str, PolyMesh]:
+    meshes = {
+        "cube": unit_cube(),
+        "inset+extruded cube": inset_extruded_cube(),
+        "torus 8x4": torus(8, 4),
+        "torus 16x8, half triangles": torus(16, 8, triangles=True),
+        "torus 25x20": torus(25, 20),
+    }
+    if quick:
+        meshes = {k: meshes[k] for k in ("cube", "torus 8x4")}
+    return meshes
+
+
+def bench_subdivision(quick: bool) -> list[Row]:
+    levels = 3
+    budget = 0.05 if quick else 0.5
+    rows = []
+    rng = np.random.default_rng(0)
+    for name, mesh in subdivision_meshes(quick).items():
+        fresh = [PolyMesh(mesh.vertices + rng.normal(0, 0.01, mesh.vertices.shape), mesh.corners, mesh.offsets)
+                 for _ in range(64)]
+        cycle = iter(range(1 << 62))
+
+        def cached(fresh=fresh, cycle=cycle):
+            return subdivision.limit_mesh(fresh[next(cycle) % len(fresh)], levels)
+
+        def uncached(mesh=mesh):
+            subdivision.clear_cache()
+            return subdivision.limit_mesh(PolyMesh(mesh.vertices, mesh.corners, mesh.offsets), levels)
+
+        cc = subdivision.get_catmull_clark(mesh, levels)
+        note = f"{cc.n_faces} faces out, limit matrix {cc.limit_matrix.nnz} nonzeros"
+        rows.append(Row("subdivision", name, mesh.n_faces, f"limit L{levels} cached", timeit(cached, budget), note))
+        rows.append(Row("subdivision", name, mesh.n_faces, f"limit L{levels} uncached",
+                        timeit(uncached, budget, repeats=3)))
+        rows.append(Row("subdivision", name, mesh.n_faces, f"L{levels} limit product",
+                        timeit(lambda cc=cc, v=mesh.vertices: cc.limit(v), budget)))
+    subdivision.clear_cache()
+    return rows
+
+
+SECTIONS: dict[str, Callable[[bool], list[Row]]] = {"subdivision": bench_subdivision}
+
+
+# --- output -------------------------------------------------------------------------------------------
+
+HEADER = ("section", "case", "faces", "measure", "per second", "one call", "note")
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.1f} µs"
+    if seconds < 1:
+        return f"{seconds * 1e3:.2f} ms"
+    return f"{seconds:.2f} s"
+
+
+def _cells(r: Row) -> tuple[str, ...]:
+    return (r.section, r.case, str(r.faces), r.what, f"{r.per_second:,.0f}", _duration(r.seconds), r.note)
+
+
+def markdown(rows: list[Row], argv: list[str]) -> str:
+    lines = [
+        "# Kernel benchmark",
+        "",
+        f"`python benchmarks/kernel.py {' '.join(argv)}`".replace(" `", "`"),
+        "",
+        f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
+        f"{os.cpu_count()} CPUs ({platform.machine()}). One call: best of several timed loops.",
+        "",
+        "| " + " | ".join(HEADER) + " |",
+        "|" + "|".join("---:" if h in ("faces", "per second", "one call") else "---" for h in HEADER) + "|",
+    ]
+    lines += ["| " + " | ".join(_cells(r)) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def print_table(rows: list[Row]) -> None:
+    try:
+        from rich.console import Console
+        from rich.table import Table
+    except ImportError:
+        for r in [HEADER, *map(_cells, rows)]:
+            print("  ".join(r))
+        return
+    table = Table(title="kernel benchmark")
+    for h in HEADER:
+        table.add_column(h, justify="right" if h in ("faces", "per second", "one call") else "left")
+    previous = None
+    for r in rows:
+        if previous is not None and (r.section, r.case) != previous:
+            table.add_section()
+        table.add_row(*_cells(r))
+        previous = (r.section, r.case)
+    Console(width=max(Console().width, 140)).print(table)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="two small cases per section, short timing loops")
+    parser.add_argument("--sections", default=",".join(SECTIONS),
+                        help=f"comma-separated sections (default all: {', '.join(SECTIONS)})")
+    parser.add_argument("--out", type=Path, default=RESULTS, help=f"markdown output (default {RESULTS})")
+    args = parser.parse_args(argv)
+    names = [s for s in args.sections.split(",") if s]
+    unknown = sorted(set(names) - set(SECTIONS))
+    if unknown:
+        parser.error(f"unknown section(s) {', '.join(unknown)}; choose from {', '.join(SECTIONS)}")
+    rows = [row for name in names for row in SECTIONS[name](args.quick)]
+    print_table(rows)
+    write_text(args.out, markdown(rows, argv))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
