@@ -3,6 +3,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-hosts.sh
-bash scripts/venv.sh "dev,cad"
+bash scripts/venv.sh "dev,cad,dask"
 .venv/bin/lint-imports --config pyproject.toml
 exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" --dist loadgroup "$@"

@@ -30,3 +30,23 @@ class Problem(Protocol):
 
     def perturb(self, gene: Gene, rng: np.random.Generator) -> Gene:
         """The same kind of gene with its parameters nudged slightly (surface GA's specific mutation)."""
+
+
+@runtime_checkable
+class LocalSearch(Protocol):
+    """Optional hook: a memetic polish of the best genome (e.g. least-squares moves appended as genes).
+
+    Used every ``GAConfig.local_search_every`` generations; the engine repairs and evaluates the result
+    and keeps it only if its cost is lower.
+    """
+
+    def local_search(self, genome: GenomeT) -> GenomeT:
+        """A genome expected to cost no more than ``genome``."""
+
+
+@runtime_checkable
+class SeedGenomes(Protocol):
+    """Optional hook: known-good genomes (repaired by the engine) put into the first population."""
+
+    def seed_genomes(self) -> list[GenomeT]:
+        """Genomes to include in the first population."""

@@ -1,0 +1,349 @@
+"""The GA loop for both of the paper's schemes, with a fitness memo, progress, Ctrl-C and checkpoints.
+
+Everything random comes from one ``np.random.Generator`` seeded once, and evaluation order never touches
+it, so a seed fixes the run whichever evaluator computes the costs. Costs are memoised by genome (genomes
+are tuples of hashable genes): an identical genome is never evaluated twice, and ``evaluations`` counts
+the memo. The population is kept sorted by cost (stable, so ties keep their order).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import pickle
+import secrets
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..atomic import write_bytes
+from ..errors import ConfigError, InputError
+from . import termination
+from .config import GAConfig
+from .evaluators import Evaluator, serial_evaluator
+from .problem import GenomeT, Problem
+from .selection import roulette_select
+from .variation import offspring, perturb_one, random_genome
+
+CHECKPOINT_FORMAT = "gsr_cad.ga.checkpoint"
+CHECKPOINT_VERSION = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class GenerationReport:
+    """Passed to ``on_generation`` after each completed generation (0 = the first population)."""
+
+    generation: int
+    best_cost: float
+    mean_cost: float
+    best_genome: GenomeT
+    evaluations: int
+    seconds: float
+    progress: float
+
+
+@dataclasses.dataclass
+class RunResult:
+    """Outcome of :meth:`GeneticAlgorithm.run`: the best genome ever evaluated and how the run went.
+
+    ``history`` rows are ``{generation, best_fitness, mean_fitness, seconds}`` where the "fitness" values
+    are costs (lower is better): the best ever and the population mean. ``generations`` counts completed
+    generations after the first population. ``stop_reason`` is "threshold", "generations",
+    "max_seconds", "stall" or "interrupted". If Ctrl-C came before any cost was known, ``best_genome``
+    is empty and ``best_cost`` is inf.
+    """
+
+    best_genome: GenomeT
+    best_cost: float
+    history: list[dict[str, float]]
+    generations: int
+    evaluations: int
+    seconds: float
+    interrupted: bool
+    stop_reason: str
+    seed: int | None = None
+
+
+def _clean_cost(value: Any) -> float:
+    """A cost as a float; nan counts as the worst (inf), a negative cost breaks the problem's contract."""
+    c = float(value)
+    if math.isnan(c):
+        return math.inf
+    if c < 0:
+        raise InputError(f"problem cost must be >= 0, got {c}")
+    return c
+
+
+class _CostFn:
+    """Picklable ``problem.cost`` wrapper; in the engine's own process it also records each result as it
+    comes, so costs computed before a Ctrl-C are not lost."""
+
+    def __init__(self, problem: Problem, sink: dict[GenomeT, float]) -> None:
+        self.problem = problem
+        self.sink = sink
+        self.owner = os.getpid()
+
+    def __call__(self, genome: GenomeT) -> float:
+        c = _clean_cost(self.problem.cost(genome))
+        if self.sink is not None and os.getpid() == self.owner:
+            self.sink[genome] = c
+        return c
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"problem": self.problem, "sink": None, "owner": self.owner}
+
+
+class GeneticAlgorithm:
+    """Evolve genomes of ``problem`` under ``config`` (the paper's "steady_state" or "plus" scheme).
+
+    ``evaluator`` is any ``(fn, items) -> list`` (default: serial in this process). ``seed=None`` draws a
+    seed, kept in ``self.seed`` so the run can be repeated. Read-only views of the state: ``population``
+    (sorted by cost) and ``costs``, ``memo`` (genome -> cost), ``history``, ``generation`` (-1 before the
+    first population).
+    """
+
+    def __init__(self, problem: Problem, config: GAConfig | None = None, seed: int | None = None,
+                 evaluator: Evaluator | None = None) -> None:
+        missing = [m for m in ("random_gene", "repair", "cost", "perturb") if not callable(getattr(problem, m, None))]
+        if missing:
+            raise ConfigError(f"{type(problem).__name__} is not a GA problem: it lacks {', '.join(missing)}")
+        config = GAConfig() if config is None else config
+        if not isinstance(config, GAConfig):
+            raise ConfigError(f"config must be a GAConfig, not {type(config).__name__}")
+        self.config = config.validate()
+        if seed is None:
+            seed = secrets.randbits(63)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ConfigError(f"seed must be a non-negative integer, not {seed!r}")
+        self.seed = int(seed)
+        self.problem = problem
+        self.evaluator: Evaluator = serial_evaluator if evaluator is None else evaluator
+        self.memo: dict[GenomeT, float] = {}
+        self._cost_fn = _CostFn(problem, self.memo)
+        self._rng = np.random.default_rng(self.seed)
+        self.population: list[GenomeT] = []
+        self.costs = np.empty(0)
+        self.history: list[dict[str, float]] = []
+        self.generation = -1
+        self._best: tuple[GenomeT, float] | None = None
+        self._first_best = math.inf
+        self._last_best = math.inf
+        self._stalled = 0
+        self._seconds = 0.0
+        self._progress = 0.0
+        self._clock: float | None = None
+        self._stop: str | None = None
+
+    # ------------------------------------------------------------------ public
+    @property
+    def evaluations(self) -> int:
+        """How many genomes have been evaluated (each at most once)."""
+        return len(self.memo)
+
+    @property
+    def best(self) -> tuple[GenomeT, float]:
+        """The best genome evaluated so far and its cost (``((), inf)`` before any evaluation)."""
+        return self._best if self._best is not None else ((), math.inf)
+
+    @property
+    def progress(self) -> float:
+        """Overall progress in [0, 1]; never decreases."""
+        return self._progress
+
+    def run(self, on_generation: Callable[[GenerationReport], None] | None = None) -> RunResult:
+        """Evolve until a stopping criterion holds or Ctrl-C; call ``on_generation`` after each generation.
+
+        Ctrl-C returns the best genome so far with ``interrupted=True``; costs of an unfinished batch count
+        when computed in this process (an out-of-process evaluator loses them). A second call continues the
+        same run (after an interrupt, or after :meth:`resume` with a longer config); a finished run returns
+        at once.
+        """
+        self._clock = time.perf_counter()
+        interrupted = False
+        try:
+            if self.generation < 0:
+                self._first_generation()
+                self._finish_generation(on_generation)
+            else:
+                self._stop = termination.stop_reason(self.config, self._state())
+            while self._stop is None:
+                self._next_generation()
+                self._finish_generation(on_generation)
+        except KeyboardInterrupt:
+            interrupted = True
+            self._best_from_memo()
+        finally:
+            self._seconds = self._elapsed()
+            self._clock = None
+        best_genome, best_cost = self.best
+        return RunResult(best_genome=best_genome, best_cost=best_cost, history=list(self.history),
+                         generations=max(self.generation, 0), evaluations=self.evaluations,
+                         seconds=self._seconds, interrupted=interrupted,
+                         stop_reason="interrupted" if interrupted else str(self._stop), seed=self.seed)
+
+    def checkpoint(self, path: str | os.PathLike[str]) -> Path:
+        """Pickle the whole run state (config, population, rng, memo, history) atomically to ``path``."""
+        state = {
+            "format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION, "config": self.config.to_dict(),
+            "seed": self.seed, "rng": self._rng.bit_generator.state, "population": self.population,
+            "costs": self.costs.tolist(), "memo": self.memo, "history": self.history,
+            "generation": self.generation, "best": self._best, "first_best": self._first_best,
+            "last_best": self._last_best, "stalled": self._stalled, "seconds": self._elapsed(),
+            "progress": self._progress,
+        }
+        return write_bytes(path, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
+
+    @classmethod
+    def resume(cls, path: str | os.PathLike[str], problem: Problem, evaluator: Evaluator | None = None,
+               config: GAConfig | None = None) -> GeneticAlgorithm:
+        """Rebuild a run from :meth:`checkpoint` (trusted files only: it is a pickle); ``run()`` continues it
+        exactly. ``config`` may replace the saved one, e.g. to allow more generations."""
+        try:
+            data = pickle.loads(Path(path).read_bytes())
+        except OSError as exc:
+            raise InputError(f"cannot read checkpoint {path}: {exc.strerror or exc}") from None
+        except Exception:
+            raise InputError(f"{path} is not a gsr_cad GA checkpoint") from None
+        if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
+            raise InputError(f"{path} is not a gsr_cad GA checkpoint")
+        if data.get("version") != CHECKPOINT_VERSION:
+            raise InputError(f"checkpoint {path} has version {data.get('version')!r}; "
+                             f"this gsr_cad reads version {CHECKPOINT_VERSION}")
+        ga = cls(problem, config if config is not None else GAConfig.from_dict(data["config"]),
+                 seed=data["seed"], evaluator=evaluator)
+        ga._rng.bit_generator.state = data["rng"]
+        ga.population = list(data["population"])
+        ga.costs = np.asarray(data["costs"], dtype=float)
+        ga.memo.update(data["memo"])
+        ga.history = list(data["history"])
+        ga.generation = data["generation"]
+        ga._best = data["best"]
+        ga._first_best = data["first_best"]
+        ga._last_best = data["last_best"]
+        ga._stalled = data["stalled"]
+        ga._seconds = data["seconds"]
+        ga._progress = data["progress"]
+        return ga
+
+    # ------------------------------------------------------------------ generations
+    def _first_generation(self) -> None:
+        cfg, rng = self.config, self._rng
+        size = max(cfg.initial_population, cfg.population)
+        seeds: list[GenomeT] = []
+        hook = getattr(self.problem, "seed_genomes", None)
+        if callable(hook):
+            seeds = [tuple(self.problem.repair(tuple(g), rng)) for g in hook()][:size]
+        genomes = seeds + [random_genome(self.problem, rng, cfg.min_initial_genes, cfg.max_initial_genes)
+                           for _ in range(size - len(seeds))]
+        costs = self._evaluate(genomes)
+        if size > cfg.population:
+            keep = roulette_select(costs, cfg.population, rng, replace=False)
+            genomes, costs = [genomes[i] for i in keep], costs[keep]
+        if cfg.scheme == "plus":
+            genomes, costs = self._limit_duplicates(genomes, costs)
+        self._commit(0, genomes, costs)
+        self._first_best = self.best[1]
+
+    def _next_generation(self) -> None:
+        cfg, rng, pop, costs = self.config, self._rng, self.population, self.costs
+        rates = (cfg.mutation_rate, cfg.delete_rate, cfg.append_rate)
+        if cfg.scheme == "steady_state":
+            n_elite = min(cfg.n_elite, len(pop))
+            n_off = cfg.population - n_elite
+            parents = roulette_select(costs, 2 * n_off, rng)
+            children = [offspring(pop[parents[2 * i]], pop[parents[2 * i + 1]], self.problem, rng, *rates)
+                        for i in range(n_off)]
+            genomes = pop[:n_elite] + children
+            all_costs = np.concatenate([costs[:n_elite], self._evaluate(children)])
+        else:
+            n_par = min(cfg.n_parents, len(pop))
+            parents = roulette_select(costs, n_par, rng, replace=False)
+            new = [offspring(pop[parents[2 * i]], pop[parents[2 * i + 1]], self.problem, rng, *rates)
+                   for i in range(min(cfg.max_children, n_par // 2))]
+            new += [perturb_one(pop[i], self.problem, rng) for i in range(min(cfg.n_perturb, len(pop)))]
+            new += [random_genome(self.problem, rng, cfg.min_initial_genes, cfg.max_initial_genes)
+                    for _ in range(cfg.n_newcomers)]
+            all_costs = np.concatenate([costs, self._evaluate(new)])
+            genomes, all_costs = self._limit_duplicates(pop + new, all_costs)
+        self._commit(self.generation + 1, genomes, all_costs)
+
+    def _commit(self, generation: int, genomes: list[GenomeT], costs: np.ndarray) -> None:
+        """Install the next population (sorted), then the optional memetic polish of its best."""
+        order = np.argsort(costs, kind="stable")
+        genomes, costs = [genomes[i] for i in order], np.asarray(costs, dtype=float)[order]
+        k = self.config.local_search_every
+        hook = getattr(self.problem, "local_search", None)
+        if k > 0 and callable(hook) and generation % k == 0 and genomes:
+            polished = tuple(self.problem.repair(tuple(hook(genomes[0])), self._rng))
+            c = self._evaluate([polished])[0]
+            if c < costs[0]:
+                genomes[0], costs[0] = polished, c
+        self.population, self.costs, self.generation = genomes, costs, generation
+
+    def _limit_duplicates(self, genomes: list[GenomeT], costs: np.ndarray) -> tuple[list[GenomeT], np.ndarray]:
+        """The best ``population`` individuals with at most ``max_duplicates`` copies of any genome."""
+        seen: dict[GenomeT, int] = {}
+        keep: list[int] = []
+        for i in np.argsort(costs, kind="stable"):
+            g = genomes[i]
+            if seen.get(g, 0) < self.config.max_duplicates:
+                seen[g] = seen.get(g, 0) + 1
+                keep.append(int(i))
+                if len(keep) == self.config.population:
+                    break
+        return [genomes[i] for i in keep], np.asarray(costs, dtype=float)[keep]
+
+    def _finish_generation(self, on_generation: Callable[[GenerationReport], None] | None) -> None:
+        best_genome, best_cost = self.best
+        if best_cost < self._last_best:
+            self._stalled = 0
+        elif self.generation > 0:
+            self._stalled += 1
+        self._last_best = best_cost
+        state = self._state()
+        self._stop = termination.stop_reason(self.config, state)
+        self._progress = 1.0 if self._stop else max(self._progress, termination.progress(self.config, state))
+        finite = self.costs[np.isfinite(self.costs)]
+        mean = float(finite.mean()) if finite.size else math.inf
+        self.history.append({"generation": self.generation, "best_fitness": best_cost, "mean_fitness": mean,
+                             "seconds": state.seconds})
+        if on_generation is not None:
+            on_generation(GenerationReport(self.generation, best_cost, mean, best_genome, self.evaluations,
+                                           state.seconds, self._progress))
+
+    # ------------------------------------------------------------------ helpers
+    def _evaluate(self, genomes: Sequence[GenomeT]) -> np.ndarray:
+        """Costs of ``genomes``; only the ones not in the memo go to the evaluator (once each)."""
+        todo = list(dict.fromkeys(g for g in genomes if g not in self.memo))
+        if todo:
+            results = list(self.evaluator(self._cost_fn, todo))
+            if len(results) != len(todo):
+                raise ConfigError(f"evaluator returned {len(results)} costs for {len(todo)} genomes")
+            best = self._best
+            for g, value in zip(todo, results):
+                c = _clean_cost(value)
+                self.memo[g] = c
+                if best is None or c < best[1]:
+                    best = (g, c)
+            self._best = best
+        return np.array([self.memo[g] for g in genomes], dtype=float)
+
+    def _best_from_memo(self) -> None:
+        """After an interrupt: include costs recorded during the unfinished batch."""
+        best = self._best
+        for g, c in self.memo.items():
+            if best is None or c < best[1]:
+                best = (g, c)
+        self._best = best
+
+    def _elapsed(self) -> float:
+        return self._seconds + (time.perf_counter() - self._clock if self._clock is not None else 0.0)
+
+    def _state(self) -> termination.RunState:
+        return termination.RunState(generation=max(self.generation, 0), best_cost=self.best[1],
+                                    first_best_cost=self._first_best, seconds=self._elapsed(),
+                                    stalled_generations=self._stalled)
