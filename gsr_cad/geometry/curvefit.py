@@ -33,7 +33,8 @@ class CurveFit:
 
 
 def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: int,
-                   lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> np.ndarray:
+                   lo: np.ndarray | None = None, hi: np.ndarray | None = None,
+                   weights: np.ndarray | None = None) -> np.ndarray:
     """Control points with ends on the first/last data point and the interior by least squares.
 
     When ``lo``/``hi`` are given and the unconstrained optimum leaves that box, a bounded solve
@@ -43,6 +44,9 @@ def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: 
     ends = np.outer(basis[:, 0], target[0]) + np.outer(basis[:, -1], target[-1])
     inner = basis[:, 1:-1]
     rhs = target - ends
+    if weights is not None:
+        root = np.sqrt(weights)[:, None]
+        inner, rhs = inner * root, rhs * root
     sol, *_ = np.linalg.lstsq(inner, rhs, rcond=None)
     if lo is not None and hi is not None and (np.any(sol < lo) or np.any(sol > hi)):
         sol = np.column_stack([
@@ -90,3 +94,29 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
             break
         params = new_params
     return fit
+
+
+def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iterations: int = 30,
+                   lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> CurveFit:
+    """Lower the *maximum* distance of a fit (Lawson's iteratively reweighted least squares).
+
+    Least squares minimises the RMS; a CAD tolerance is a maximum. Lawson's weights (multiplied by each
+    point's current distance) drive the weighted solution toward the minimax one; parameters follow by
+    foot points. Returns the iterate with the smallest maximum distance.
+    """
+    n_ctrl = len(fit.ctrl)
+    weights = np.full(len(target), 1.0 / len(target))
+    best, params, dist = fit, fit.params, fit.distances
+    for _ in range(iterations):
+        weights = weights * np.maximum(dist, 1e-300)
+        total = weights.sum()
+        if not np.isfinite(total) or total <= 0:
+            break
+        weights /= total
+        params = np.maximum.accumulate(np.clip(params, 0.0, 1.0))
+        params[0], params[-1] = 0.0, 1.0
+        ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, weights=weights)
+        params, dist = foot_points(ctrl, target, params, degree=degree, iterations=2)
+        if dist.max() < best.distances.max():
+            best = CurveFit(ctrl, params, dist)
+    return best

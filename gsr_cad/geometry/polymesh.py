@@ -23,15 +23,14 @@ class PolyMesh:
     __slots__ = ("vertices", "corners", "offsets", "_topology", "_key", "__dict__")
 
     def __init__(self, vertices: np.ndarray, corners: np.ndarray, offsets: np.ndarray, _topology=None):
-        v = np.array(vertices, dtype=np.float64, copy=True).reshape(-1, 3)
-        c = np.array(corners, dtype=np.int64, copy=True).ravel()
-        o = np.array(offsets, dtype=np.int64, copy=True).ravel()
-        if o.size == 0 or o[0] != 0 or o[-1] != c.size or np.any(np.diff(o) < 3):
-            raise TopologyError("faces need at least 3 corners each")
-        if c.size and (c.min() < 0 or c.max() >= len(v)):
-            raise TopologyError("a face refers to a vertex that does not exist")
-        for a in (v, c, o):
-            a.setflags(write=False)
+        v = _frozen(vertices, np.float64).reshape(-1, 3)
+        c = _frozen(corners, np.int64).ravel()
+        o = _frozen(offsets, np.int64).ravel()
+        if _topology is None:
+            if o.size == 0 or o[0] != 0 or o[-1] != c.size or np.any(np.diff(o) < 3):
+                raise TopologyError("faces need at least 3 corners each")
+            if c.size and (c.min() < 0 or c.max() >= len(v)):
+                raise TopologyError("a face refers to a vertex that does not exist")
         self.vertices, self.corners, self.offsets = v, c, o
         self._topology = _topology
         self._key = None
@@ -46,14 +45,11 @@ class PolyMesh:
         return cls(vertices, corners, offsets)
 
     def with_vertices(self, vertices: np.ndarray) -> PolyMesh:
-        """Same faces, new positions; shares the cached topology (no recomputation)."""
+        """Same faces, new positions; shares the topology (and its caches) if it was built."""
         mesh = PolyMesh(vertices, self.corners, self.offsets, _topology=self._topology)
         if mesh.vertices.shape != self.vertices.shape:
             raise TopologyError("with_vertices needs as many vertices as the mesh has")
         mesh._key = self._key
-        if self._topology is None:
-            mesh._topology = self.topology
-            mesh._key = self.topology_key
         return mesh
 
     # --- sizes and faces -------------------------------------------------------------------------
@@ -147,6 +143,15 @@ class PolyMesh:
 
     def __repr__(self) -> str:
         return f"PolyMesh({self.n_vertices} vertices, {self.n_faces} faces)"
+
+
+def _frozen(array, dtype) -> np.ndarray:
+    """A read-only array of ``dtype``: arrays that already are read-only are shared, others copied."""
+    if isinstance(array, np.ndarray) and array.dtype == dtype and not array.flags.writeable:
+        return array
+    out = np.array(array, dtype=dtype, copy=True)
+    out.setflags(write=False)
+    return out
 
 
 def unit_cube(size: float = 1.0, center: Sequence[float] = (0.0, 0.0, 0.0)) -> PolyMesh:

@@ -54,7 +54,7 @@ class CurveConfig:
             raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
         base: dict[str, Any] = {}
         if name == "paper":
-            base = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=1.0,
+            base = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
                         generations=300, stall_generations=0, threshold=-1.0)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(overrides) - names)
@@ -139,9 +139,9 @@ class SurfaceConfig:
     perturb_rel: float = 0.02
     max_control_faces: int = 120
     max_target_points: int = 3000
-    polish_rounds: int = 3
-    final_polish_rounds: int = 30
-    polish_every: int = 0
+    polish_rounds: int = 1
+    final_polish_rounds: int = 10
+    polish_every: int = 1
     polish_damping: float = 1e-3
     population: int = 100
     initial_population: int = 100

@@ -28,7 +28,7 @@ from .. import genome as genome_mod
 from ..errors import OpError
 from ..ga import GAConfig, GeneticAlgorithm, GenerationReport, RunResult
 from ..geometry import bspline
-from ..geometry.curvefit import CurveFit, fit_curve
+from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine
 from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_curve
 from ..ops import curve as curve_ops
 from .config import CurveConfig
@@ -111,6 +111,52 @@ class CurveProblem:
         _, dist = foot_points(poly.points, self.points, self._chord, degree=self.degree)
         return float(dist.sum())
 
+    def local_search(self, genome: tuple) -> tuple:
+        """Memetic step on the best genome (Lamarckian mode only): walk the number of points.
+
+        The cost depends on the genome only through its point count, so trying counts near the current
+        one is a handful of cached look-ups; the walk moves to the first better count among
+        +1..+3 and -1..-2 (insertions appended at the middle of the longest polygon edge, or the last
+        insertions dropped) until none is better.
+        """
+        if not self.config.polish:
+            return genome
+        best, best_cost = tuple(genome), self.cost(genome)
+        for _ in range(self.max_ctrl):
+            for step in (1, 2, 3, -1, -2):
+                candidate = self._resized(best, step)
+                if candidate is not None and (cost := self.cost(candidate)) < best_cost:
+                    best, best_cost = candidate, cost
+                    break
+            else:
+                break
+        return best
+
+    def _resized(self, genome: tuple, step: int) -> tuple | None:
+        """``genome`` with ``step`` insertions appended (> 0) or its last ``-step`` insertions removed."""
+        if step < 0:
+            adds = [i for i, op in enumerate(genome) if isinstance(op, curve_ops.AddPoint)]
+            if len(adds) < -step:
+                return None
+            drop = set(adds[step:])
+            kept = genome_mod.repair(self.template, (op for i, op in enumerate(genome) if i not in drop))[0]
+            return kept if len(kept) >= self.config.min_ops else None
+        out = list(genome)
+        poly = self._state(tuple(out))
+        for _ in range(step):
+            if poly.n >= self.max_ctrl:
+                return None
+            seg = np.linalg.norm(np.diff(poly.points, axis=0), axis=1)
+            i = int(np.argmax(seg))
+            mid = 0.5 * (poly.points[i] + poly.points[i + 1])
+            op = curve_ops.AddPoint(i + 1, (float(mid[0]), float(mid[1])))
+            try:
+                poly = op.apply(poly)
+            except OpError:
+                return None
+            out.append(op)
+        return tuple(out)
+
     def perturb(self, gene: genome_mod.Op, rng: np.random.Generator) -> genome_mod.Op:
         return curve_ops.perturb_op(gene, rng, 0.02 * self.diag)
 
@@ -122,13 +168,17 @@ class CurveProblem:
             warm = self.fit(n - 1)[0].params if n > 4 and self.config.fitness == "geometric" else None
             fit = fit_curve(self.points, n, self.degree, parametrization=self.config.fitness,
                             iterations=self.config.fit_iterations, lo=self.lo, hi=self.hi, warm_params=warm)
+            limit = self.config.max_distance
+            if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
+                # A CAD tolerance is a maximum: near misses get a minimax placement before being judged.
+                fit = minimax_refine(self.points, fit, self.degree, lo=self.lo, hi=self.hi)
             self._fits[n] = (fit, fit.rms / self.diag, float(fit.distances.max()) / self.diag)
         return self._fits[n]
 
     def final_fit(self, n: int) -> CurveFit:
         """The search's fit of ``n`` points refined to convergence (done once, for the winner)."""
         quick = self.fit(n)[0]
-        if self.config.fitness != "geometric":
+        if self.config.fitness != "geometric" or self.config.max_distance is not None:
             return quick
         fit = fit_curve(self.points, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo,
                         hi=self.hi, rtol=1e-7, warm_params=quick.params)
@@ -138,7 +188,7 @@ class CurveProblem:
         _, rms_rel, max_rel = self.fit(n)
         cost = math.exp(2.0 * n * math.log(self.m) / self.m) * max(rms_rel, self.config.tolerance) ** 2
         if self.config.max_distance is not None and max_rel > self.config.max_distance:
-            cost *= 1e6
+            cost *= 1e6 * (max_rel / self.config.max_distance) ** 2  # infeasible: worse, and graded by the miss
         return cost
 
     def polished(self, genome: tuple) -> tuple:
@@ -194,6 +244,7 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
         threshold=problem.threshold() or 0.0,
         stall_generations=config.stall_generations or None,
         max_seconds=config.max_seconds or None,
+        local_search_every=1 if config.polish else 0,
     )
 
 

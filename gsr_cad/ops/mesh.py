@@ -1,0 +1,388 @@
+"""The seven surface modelling ops (letters V E L B I F S) on a closed polygon mesh.
+
+Each op is a frozen dataclass registered by name around one pure function of
+:mod:`gsr_cad.ops.mesh_kernel`, ``PolyMesh -> PolyMesh``; an op that cannot apply, or would leave a
+degenerate, folded or flipped face, raises :class:`~gsr_cad.errors.OpError` (repair drops it). The
+semantics are those of Blender's bmesh operators, so that the Blender replay
+(:mod:`gsr_cad.exporters.blender`) rebuilds the same control mesh; normals are unit Newell normals.
+
+Element references index the mesh as it stands when the op runs: vertices by vertex index, faces by face
+index, edges by :class:`~gsr_cad.geometry.topology.Topology` edge index (first appearance walking the
+faces' corners). Element order after each op, with ``n`` the old vertex count, ``m`` the old face count,
+face ``f`` having corners ``c_0 .. c_{k-1}``:
+
+* V ``translate_vertex(vertex, delta)``, F ``translate_face(face, distance)`` (along the face's normal),
+  S ``scale(factor)`` (about the bounding-box centre): positions change, nothing is renumbered.
+* E ``extrude(face, distance)``: new vertex ``n + i`` is ``c_i + distance * normal``; face ``f`` keeps
+  its index on the new vertices ``(n, .., n + k - 1)``; side quad ``m + i`` is
+  ``(c_i, c_{i+1}, n + i + 1, n + i)`` (Blender: ``extrude_face_region`` with ``use_keep_orig=False``).
+* I ``inset(face, thickness)``: the same layout as E, with the new vertices inside the face where every
+  inner edge lies ``thickness`` from its outer edge (``inset_individual``, even offset).
+* L ``edge_loop(edge)``: the ring of opposite edges through quads (see :func:`~gsr_cad.ops.mesh_kernel.edge_ring`:
+  ``edge``, then the edges met across its first face, then those met across its second face) is cut at
+  the midpoints, new vertex ``n + j`` on ring edge ``j``. Each crossed quad keeps its index with the
+  half that holds its first corner (still first); the other halves are appended in ring order. A
+  non-quad face where an open ring ends gets the midpoint as an extra corner (a T-vertex)
+  (``subdivide_edgering``, one cut).
+* B ``bevel(edge, offset)`` on edge ``(a, b)`` whose first face ``f1`` runs ``a -> b``: each end of
+  valence ``k`` is replaced by ``k - 1`` boundary vertices, one on each other edge at it: on the two
+  edges next to the bevelled one at distance ``offset`` from its line (in the plane of the two edges),
+  on any further edge ``offset`` along it. The boundary vertex on the ``f1`` side takes the end's index;
+  the others are appended, end ``a`` first, each end in the order of its end polygon. Old faces keep
+  their index with the end replaced by its boundary vertices; appended: the bevel quad, then for an end
+  of valence >= 4 the polygon of its boundary vertices (end ``a`` first). An end of valence 3 adds the
+  two boundary vertices to the third face instead (``bevel`` with ``offset_type='OFFSET'``,
+  ``segments=1``, ``profile=0.5``). Corners between the edge and its neighbours must lie in
+  ``[15, 165]`` degrees and be convex; otherwise Blender builds something else and the op is invalid.
+
+:func:`random_op` draws ops with parameters scaled by the target's bounding-box diagonal (see
+:class:`OpRanges`) and :func:`perturb_op` nudges one (the surface GA's specific mutation).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from ..errors import ConfigError, InputError
+from ..geometry.polymesh import PolyMesh
+from . import mesh_kernel as K
+from .base import Op, register
+from .mesh_conn import connectivity
+
+__all__ = [
+    "Bevel", "EdgeLoop", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
+    "TranslateFace", "TranslateVertex", "bevel", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
+    "scale", "translate_face", "translate_vertex",
+]
+
+translate_vertex = K.translate_vertex
+extrude = K.extrude
+edge_loop = K.edge_loop
+bevel = K.bevel
+inset = K.inset
+translate_face = K.translate_face
+scale = K.scale
+
+
+def _element(value, what: str) -> int:
+    """A non-negative integer index (an integral float from JSON is accepted)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InputError(f"{what} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def _number(value, what: str, positive: bool = False) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be a number, got {value!r}") from None
+    if isinstance(value, bool) or not math.isfinite(x) or (positive and not x > 0.0):
+        raise InputError(f"{what} must be a finite{' positive' if positive else ''} number, got {value!r}")
+    return x + 0.0
+
+
+def _vector(value, what: str) -> tuple[float, float, float]:
+    try:
+        x, y, z = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be three numbers, got {value!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise InputError(f"{what} must be finite, got {value!r}")
+    return (x + 0.0, y + 0.0, z + 0.0)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshOp(Op):
+    """Base of the surface ops: ``letter`` is the paper's one-letter code."""
+
+    letter: ClassVar[str] = ""
+
+    def describe(self) -> str:  # pragma: no cover - every subclass overrides it
+        raise NotImplementedError
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class TranslateVertex(MeshOp):
+    """V: move vertex ``vertex`` by ``delta``."""
+
+    name: ClassVar[str] = "translate_vertex"
+    letter: ClassVar[str] = "V"
+    vertex: int
+    delta: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vertex", _element(self.vertex, "translate_vertex vertex"))
+        object.__setattr__(self, "delta", _vector(self.delta, "translate_vertex delta"))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return translate_vertex(state, self.vertex, self.delta)
+
+    def describe(self) -> str:
+        return f"translate vertex {self.vertex} by ({', '.join(map(_fmt, self.delta))})"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class Extrude(MeshOp):
+    """E: extrude face ``face`` by ``distance`` along its normal (negative: into the mesh)."""
+
+    name: ClassVar[str] = "extrude"
+    letter: ClassVar[str] = "E"
+    face: int
+    distance: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "face", _element(self.face, "extrude face"))
+        object.__setattr__(self, "distance", _number(self.distance, "extrude distance"))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return extrude(state, self.face, self.distance)
+
+    def describe(self) -> str:
+        return f"extrude face {self.face} by {_fmt(self.distance)}"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class EdgeLoop(MeshOp):
+    """L: insert an edge loop across the ring of quads through edge ``edge``."""
+
+    name: ClassVar[str] = "edge_loop"
+    letter: ClassVar[str] = "L"
+    edge: int
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "edge", _element(self.edge, "edge_loop edge"))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return edge_loop(state, self.edge)
+
+    def describe(self) -> str:
+        return f"edge loop through edge {self.edge}"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class Bevel(MeshOp):
+    """B: bevel edge ``edge`` with offset ``offset > 0`` (one segment)."""
+
+    name: ClassVar[str] = "bevel"
+    letter: ClassVar[str] = "B"
+    edge: int
+    offset: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "edge", _element(self.edge, "bevel edge"))
+        object.__setattr__(self, "offset", _number(self.offset, "bevel offset", positive=True))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return bevel(state, self.edge, self.offset)
+
+    def describe(self) -> str:
+        return f"bevel edge {self.edge} by {_fmt(self.offset)}"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class Inset(MeshOp):
+    """I: inset face ``face`` by ``thickness > 0``."""
+
+    name: ClassVar[str] = "inset"
+    letter: ClassVar[str] = "I"
+    face: int
+    thickness: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "face", _element(self.face, "inset face"))
+        object.__setattr__(self, "thickness", _number(self.thickness, "inset thickness", positive=True))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return inset(state, self.face, self.thickness)
+
+    def describe(self) -> str:
+        return f"inset face {self.face} by {_fmt(self.thickness)}"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class TranslateFace(MeshOp):
+    """F: move face ``face`` by ``distance`` along its normal."""
+
+    name: ClassVar[str] = "translate_face"
+    letter: ClassVar[str] = "F"
+    face: int
+    distance: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "face", _element(self.face, "translate_face face"))
+        object.__setattr__(self, "distance", _number(self.distance, "translate_face distance"))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return translate_face(state, self.face, self.distance)
+
+    def describe(self) -> str:
+        return f"translate face {self.face} by {_fmt(self.distance)}"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class Scale(MeshOp):
+    """S: scale the whole mesh by ``factor > 0`` about its bounding-box centre."""
+
+    name: ClassVar[str] = "scale"
+    letter: ClassVar[str] = "S"
+    factor: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "factor", _number(self.factor, "scale factor", positive=True))
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return scale(state, self.factor)
+
+    def describe(self) -> str:
+        return f"scale by {_fmt(self.factor)}"
+
+
+OPS_BY_LETTER: dict[str, type[MeshOp]] = {
+    cls.letter: cls for cls in (TranslateVertex, Extrude, EdgeLoop, Bevel, Inset, TranslateFace, Scale)
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class OpRanges:
+    """Ranges of :func:`random_op`; ``d`` is the ``scale`` argument (the target's bounding-box diagonal).
+
+    * V: ``delta`` uniform in ``[-move * d, move * d]^3`` (the paper: ``move = 1``);
+    * E: ``|distance|`` uniform in ``[0.05, 1] * extrude * d``, negative (a pocket) with probability
+      ``inward`` (the paper: up to ``d``, outwards);
+    * F: ``distance`` uniform in ``[-face_move * d, face_move * d]``;
+    * S: ``factor`` log-uniform in ``[1 / max_factor, max_factor]``;
+    * B: ``offset`` uniform in ``offset`` times the shortest other edge at the edge's ends (an offset
+      slides along those edges, so a longer one is always invalid);
+    * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance.
+    """
+
+    move: float = 0.1
+    extrude: float = 0.5
+    inward: float = 0.2
+    face_move: float = 0.1
+    max_factor: float = 1.25
+    offset: tuple[float, float] = (0.05, 0.6)
+    thickness: tuple[float, float] = (0.05, 0.6)
+
+    def __post_init__(self) -> None:
+        for name in ("move", "extrude", "face_move"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0.0):
+                raise ConfigError(f"op range {name} must be a finite number >= 0, got {getattr(self, name)!r}")
+        if not 0.0 <= self.inward <= 1.0:
+            raise ConfigError(f"op range inward must lie in [0, 1], got {self.inward!r}")
+        if not (math.isfinite(self.max_factor) and self.max_factor >= 1.0):
+            raise ConfigError(f"op range max_factor must be a finite number >= 1, got {self.max_factor!r}")
+        for name in ("offset", "thickness"):
+            lo, hi = getattr(self, name)
+            if not 0.0 < lo <= hi:
+                raise ConfigError(f"op range {name} must satisfy 0 < low <= high, got {(lo, hi)!r}")
+
+
+PAPER_RANGES = OpRanges(move=1.0, extrude=1.0, inward=0.0)
+"""The paper's ranges: vertex moves anywhere in ``[-d, d]^3``, extrusions outwards up to ``d``."""
+
+
+def _local_edge_size(P: list[list[float]], conn, edge: int) -> float:
+    """Shortest other edge at the two ends of ``edge``."""
+    a, b = conn.edges[edge]
+    best = math.inf
+    for v in (a, b):
+        for f in conn.vertex_faces(v):
+            cyc = conn.faces[f]
+            i = cyc.index(v)
+            for x in (cyc[i - 1], cyc[(i + 1) % len(cyc)]):
+                if x != a and x != b:
+                    best = min(best, math.dist(P[v], P[x]))
+    return best if math.isfinite(best) else math.dist(P[a], P[b])
+
+
+def _face_inradius(P: list[list[float]], cyc: tuple[int, ...]) -> float:
+    """Smallest distance from the face's centroid to the lines of its edges."""
+    k = len(cyc)
+    c = [sum(P[i][j] for i in cyc) / k for j in range(3)]
+    best = math.inf
+    for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+        e = K._sub(P[v], P[u])
+        length = K._norm(e)
+        if length > 0.0:
+            best = min(best, K._norm(K._cross(e, K._sub(c, P[u]))) / length)
+    return best if math.isfinite(best) else 0.0
+
+
+def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
+              ranges: OpRanges = OpRanges()) -> MeshOp:
+    """A random op for ``mesh``: kind uniform over the letters in ``kinds``, element uniform, parameters
+    drawn from ``ranges`` (see :class:`OpRanges`) with ``scale`` the target's bounding-box diagonal.
+    The op may still be invalid for ``mesh`` (repair drops it)."""
+    letters = [k for k in kinds if k in OPS_BY_LETTER]
+    if not letters or len(letters) != len(kinds):
+        raise ConfigError(f"op kinds must be letters from {''.join(OPS_BY_LETTER)}, got {kinds!r}")
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise ConfigError(f"op scale must be a finite positive number, got {scale!r}")
+    kind = letters[int(rng.integers(len(letters)))]
+    if kind == "S":
+        return Scale(float(math.exp(rng.uniform(-1.0, 1.0) * math.log(ranges.max_factor))))
+    if kind == "V":
+        vertex = int(rng.integers(mesh.n_vertices))
+        return TranslateVertex(vertex, tuple((rng.uniform(-1.0, 1.0, 3) * ranges.move * scale).tolist()))
+    conn = connectivity(mesh)
+    if kind in "EIF":
+        face = int(rng.integers(conn.n_faces))
+        if kind == "E":
+            distance = rng.uniform(0.05, 1.0) * ranges.extrude * scale
+            return Extrude(face, float(-distance if rng.random() < ranges.inward else distance))
+        if kind == "F":
+            return TranslateFace(face, float(rng.uniform(-1.0, 1.0) * ranges.face_move * scale))
+        size = _face_inradius(mesh.vertices.tolist(), conn.faces[face]) or scale  # a zero-area face: any size
+        return Inset(face, float(rng.uniform(*ranges.thickness) * size))
+    edge = int(rng.integers(len(conn.edges)))
+    if kind == "L":
+        return EdgeLoop(edge)
+    size = _local_edge_size(mesh.vertices.tolist(), conn, edge) or scale
+    return Bevel(edge, float(rng.uniform(*ranges.offset) * size))
+
+
+def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02, log_sigma: float = 0.1) -> MeshOp:
+    """The same kind of op on the same element with its parameters nudged (the surface GA's specific mutation).
+
+    Lengths (V delta per axis, E and F distances) move by ``N(0, (rel * scale)^2)``; positive amounts
+    (B offset, I thickness) are multiplied by ``exp(N(0, log_sigma^2))`` and the S factor by
+    ``exp(N(0, rel^2))``, so they stay positive. L has no parameter and comes back unchanged.
+    """
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise ConfigError(f"perturbation scale must be a finite positive number, got {scale!r}")
+    if not (math.isfinite(rel) and rel >= 0.0 and math.isfinite(log_sigma) and log_sigma >= 0.0):
+        raise ConfigError(f"perturbation sizes must be finite numbers >= 0, got rel={rel!r}, log_sigma={log_sigma!r}")
+    sigma = rel * scale
+    if isinstance(op, TranslateVertex):
+        return TranslateVertex(op.vertex, tuple((np.asarray(op.delta) + rng.normal(0.0, sigma, 3)).tolist()))
+    if isinstance(op, Extrude):
+        return Extrude(op.face, op.distance + float(rng.normal(0.0, sigma)))
+    if isinstance(op, TranslateFace):
+        return TranslateFace(op.face, op.distance + float(rng.normal(0.0, sigma)))
+    if isinstance(op, Bevel):
+        return Bevel(op.edge, op.offset * float(np.exp(rng.normal(0.0, log_sigma))))
+    if isinstance(op, Inset):
+        return Inset(op.face, op.thickness * float(np.exp(rng.normal(0.0, log_sigma))))
+    if isinstance(op, Scale):
+        return Scale(op.factor * float(np.exp(rng.normal(0.0, rel))))
+    if isinstance(op, EdgeLoop):
+        return op
+    raise InputError(f"perturb_op knows only surface ops, got {type(op).__name__}")

@@ -1,0 +1,523 @@
+"""The seven surface modelling ops as pure functions ``PolyMesh -> PolyMesh`` (see :mod:`gsr_cad.ops.mesh`).
+
+Each function validates its element reference and parameters, builds the new vertex list and face
+cycles in the documented order with plain Python (small meshes), checks the faces it touched and
+raises :class:`~gsr_cad.errors.OpError` when the result would be invalid. The checks are local: every
+touched face keeps edges of at least ``MIN_EDGE_REL`` times the mesh diagonal, a non-negligible area,
+stays star-shaped about its centroid (no bow-tie or folded polygon), keeps the orientation of the face
+it came from (no flip), and meets each neighbour at an opening angle above ``FOLD_DEG`` (no fin or
+folded-back sheet). Intersections between faces that share no edge are not looked for.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+from ..errors import OpError
+from ..geometry.polymesh import PolyMesh
+from .mesh_conn import MeshConn, connectivity, make_mesh
+
+MIN_EDGE_REL = 1e-4
+"""Shortest allowed edge, as a fraction of the mesh's bounding-box diagonal."""
+MIN_AREA_REL = 1e-8
+"""Smallest allowed face area, as a fraction of the squared diagonal."""
+FAN_MIN_FRAC = 1e-3
+"""Each centroid-fan triangle of a face must hold at least this share of the face's mean fan area."""
+FOLD_DEG = 2.0
+"""Smallest opening angle (degrees) between two faces sharing an edge."""
+BEVEL_MIN_DEG = 15.0
+"""Bevel needs every corner between the bevelled edge and its neighbours in ``[15, 165]`` degrees,
+clearly convex: Blender switches to other constructions near 0 and 180 degrees and on reflex corners."""
+INSET_MIN_DEG = 15.0
+"""Inset needs every corner of the face in ``[15, 345]`` degrees: at a spike the inner vertex runs off
+by ``thickness / sin(angle / 2)`` and single-precision replays drift."""
+
+_FOLD_COS = math.cos(math.radians(FOLD_DEG))
+_BEVEL_MIN_SIN = math.sin(math.radians(BEVEL_MIN_DEG))
+_INSET_MIN_COS = math.sin(math.radians(INSET_MIN_DEG / 2))
+
+Vec = tuple[float, float, float]
+
+
+# --- small vector helpers on tuples (faster than numpy for a handful of points) -------------------------
+
+def _sub(p: Sequence[float], q: Sequence[float]) -> Vec:
+    return (p[0] - q[0], p[1] - q[1], p[2] - q[2])
+
+
+def _cross(a: Sequence[float], b: Sequence[float]) -> Vec:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _norm(a: Sequence[float]) -> float:
+    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+def _unit(a: Sequence[float]) -> Vec | None:
+    n = _norm(a)
+    return (a[0] / n, a[1] / n, a[2] / n) if n > 0.0 else None
+
+
+def _newell(P: list[list[float]], cyc: Sequence[int]) -> Vec:
+    """Newell area vector of a face (twice its vector area), the same as PolyMesh.face_newell."""
+    nx = ny = nz = 0.0
+    px, py, pz = P[cyc[-1]]
+    for i in cyc:
+        qx, qy, qz = P[i]
+        nx += (py - qy) * (pz + qz)
+        ny += (pz - qz) * (px + qx)
+        nz += (px - qx) * (py + qy)
+        px, py, pz = qx, qy, qz
+    return (nx, ny, nz)
+
+
+def _diagonal(P: list[list[float]]) -> float:
+    xs, ys, zs = zip(*P)
+    return math.sqrt((max(xs) - min(xs)) ** 2 + (max(ys) - min(ys)) ** 2 + (max(zs) - min(zs)) ** 2)
+
+
+def face_normal(P: list[list[float]], cyc: Sequence[int]) -> Vec | None:
+    """Unit Newell normal of a face, or None when its area is zero."""
+    return _unit(_newell(P, cyc))
+
+
+# --- validity ------------------------------------------------------------------------------------------
+
+def _check(what: str, P: list[list[float]], faces: list[tuple[int, ...]], conn: MeshConn,
+           touched: Iterable[int], refs: dict[int, Vec | None], diag: float) -> None:
+    """Raise OpError unless every touched face is sound (see the module docstring).
+
+    ``refs`` maps a face to the unit normal it must not flip against (the face it came from). The
+    arithmetic is written out on floats: this runs once per op in every GA replay.
+    """
+    min_len2 = (MIN_EDGE_REL * diag) ** 2
+    min_area2 = 2.0 * MIN_AREA_REL * diag * diag
+    newell: dict[int, Vec] = {}
+    touched = list(touched)
+    for f in touched:
+        pts = [P[c] for c in faces[f]]
+        k = len(pts)
+        nx = ny = nz = sx = sy = sz = 0.0
+        px, py, pz = pts[-1]
+        for qx, qy, qz in pts:
+            nx += (py - qy) * (pz + qz)
+            ny += (pz - qz) * (px + qx)
+            nz += (px - qx) * (py + qy)
+            sx += qx
+            sy += qy
+            sz += qz
+            ex, ey, ez = qx - px, qy - py, qz - pz
+            if ex * ex + ey * ey + ez * ez < min_len2:
+                raise OpError(f"{what}: face {f} would get a (nearly) zero-length edge")
+            px, py, pz = qx, qy, qz
+        n2 = nx * nx + ny * ny + nz * nz
+        if n2 < min_area2 * min_area2:
+            raise OpError(f"{what}: face {f} would have (nearly) zero area")
+        newell[f] = (nx, ny, nz)
+        # centroid fan: each triangle (c, p, q) must turn the same way as the face, by a margin
+        fan_min = FAN_MIN_FRAC * n2 / k
+        cx, cy, cz = sx / k, sy / k, sz / k
+        px, py, pz = pts[-1]
+        ax, ay, az = px - cx, py - cy, pz - cz
+        for qx, qy, qz in pts:
+            bx, by, bz = qx - cx, qy - cy, qz - cz
+            if (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz < fan_min:
+                raise OpError(f"{what}: face {f} would fold over itself")
+            ax, ay, az = bx, by, bz
+        ref = refs.get(f)
+        if ref is not None and nx * ref[0] + ny * ref[1] + nz * ref[2] <= 0.0:
+            raise OpError(f"{what}: face {f} would flip")
+    half = conn.half
+    for f in touched:
+        cyc = faces[f]
+        nf = newell[f]
+        lf = math.sqrt(nf[0] * nf[0] + nf[1] * nf[1] + nf[2] * nf[2])
+        for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+            g = half.get((v, u), -1)
+            if g < 0:
+                continue
+            ng = newell.get(g)
+            if ng is None:
+                ng = newell[g] = _newell(P, faces[g])
+            dot = nf[0] * ng[0] + nf[1] * ng[1] + nf[2] * ng[2]
+            if dot < -_FOLD_COS * lf * math.sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]):
+                raise OpError(f"{what}: faces {f} and {g} would fold onto each other")
+
+
+def _vertex_list(mesh: PolyMesh) -> list[list[float]]:
+    return mesh.vertices.tolist()
+
+
+def _index(value: int, count: int, what: str, kind: str) -> int:
+    if not 0 <= value < count:
+        raise OpError(f"{what}: {kind} {value} does not exist (the mesh has {count})")
+    return value
+
+
+def _moved(mesh: PolyMesh, P: list[list[float]]) -> PolyMesh:
+    """Same connectivity, new positions; shares the numpy topology only when it was already built."""
+    return PolyMesh(P, mesh.corners, mesh.offsets, _topology=mesh._topology)
+
+
+# --- V, F, S: vertex moves -----------------------------------------------------------------------------
+
+def translate_vertex(mesh: PolyMesh, vertex: int, delta: Sequence[float]) -> PolyMesh:
+    """V: move one vertex by ``delta``."""
+    what = f"translate_vertex {vertex}"
+    conn = connectivity(mesh)
+    _index(vertex, mesh.n_vertices, what, "vertex")
+    around = conn.vertex_faces(vertex)
+    if not around:
+        raise OpError(f"{what}: vertex {vertex} is on no face")
+    P = _vertex_list(mesh)
+    diag = _diagonal(P)
+    refs = {f: face_normal(P, conn.faces[f]) for f in around}
+    p = P[vertex]
+    P[vertex] = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]]
+    _check(what, P, conn.faces, conn, around, refs, diag)
+    return _moved(mesh, P)
+
+
+def translate_face(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
+    """F: move a face's vertices by ``distance`` along its unit Newell normal."""
+    what = f"translate_face {face}"
+    conn = connectivity(mesh)
+    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
+    P = _vertex_list(mesh)
+    n = face_normal(P, cyc)
+    if n is None:
+        raise OpError(f"{what}: face {face} has zero area")
+    diag = _diagonal(P)
+    around = sorted({g for c in cyc for g in conn.vertex_faces(c)})
+    refs = {g: face_normal(P, conn.faces[g]) for g in around}
+    dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
+    for c in cyc:
+        p = P[c]
+        P[c] = [p[0] + dx, p[1] + dy, p[2] + dz]
+    _check(what, P, conn.faces, conn, around, refs, diag)
+    return _moved(mesh, P)
+
+
+def scale(mesh: PolyMesh, factor: float) -> PolyMesh:
+    """S: scale every vertex by ``factor > 0`` about the centre of the bounding box."""
+    if not factor > 0.0:
+        raise OpError(f"scale {factor}: the factor must be positive")
+    centre = mesh.bbox.mean(axis=0)
+    return _moved(mesh, centre + factor * (mesh.vertices - centre))
+
+
+def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
+    """The pivot of :func:`scale` (centre of the bounding box) as plain floats."""
+    c = mesh.bbox.mean(axis=0)
+    return (float(c[0]), float(c[1]), float(c[2]))
+
+
+# --- E, I: a face on new vertices plus a ring of quads -----------------------------------------------------
+
+def _cap_and_ring(P: list[list[float]], faces: list[tuple[int, ...]], face: int,
+                  new_points: list[list[float]]) -> tuple[list[tuple[int, ...]], list[int]]:
+    """Replace ``face`` by a copy on new vertices and add one quad per edge; returns (faces, new face ids)."""
+    cyc = faces[face]
+    k = len(cyc)
+    base = len(P)
+    P.extend(new_points)
+    new = tuple(range(base, base + k))
+    out = list(faces)
+    out[face] = new
+    first = len(out)
+    out.extend((cyc[i], cyc[(i + 1) % k], new[(i + 1) % k], new[i]) for i in range(k))
+    return out, [face, *range(first, first + k)]
+
+
+def extrude(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
+    """E: move ``face`` to new vertices ``distance`` along its normal, joined to the old rim by quads."""
+    what = f"extrude {face}"
+    conn = connectivity(mesh)
+    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
+    P = _vertex_list(mesh)
+    n = face_normal(P, cyc)
+    if n is None:
+        raise OpError(f"{what}: face {face} has zero area")
+    diag = _diagonal(P)
+    dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
+    pts = [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc]
+    faces, touched = _cap_and_ring(P, conn.faces, face, pts)
+    new_conn = MeshConn.updated(conn, faces, touched, len(P))
+    _check(what, P, faces, new_conn, touched, {}, diag)
+    return make_mesh(P, faces, new_conn)
+
+
+def inset_points(P: list[list[float]], cyc: Sequence[int], thickness: float, n: Vec,
+                 what: str = "inset") -> list[list[float]]:
+    """Blender's ``inset_individual`` with even offset: each corner moves along the bisector of the inward
+    edge tangents ``n x edge`` so that both adjacent inner edges lie ``thickness`` from the outer ones."""
+    k = len(cyc)
+    tangents = []
+    for i in range(k):
+        t = _unit(_cross(n, _sub(P[cyc[(i + 1) % k]], P[cyc[i]])))
+        if t is None:
+            raise OpError(f"{what}: an edge is parallel to the face normal")
+        tangents.append(t)
+    out = []
+    for i in range(k):
+        a, b = tangents[i - 1], tangents[i]
+        m = _unit((a[0] + b[0], a[1] + b[1], a[2] + b[2]))
+        cos_half = _dot(m, a) if m is not None else 0.0  # sin(corner angle / 2)
+        if cos_half < _INSET_MIN_COS:
+            raise OpError(f"{what}: corner {i} of the face is a spike (under {INSET_MIN_DEG:g} degrees)")
+        s = thickness / cos_half
+        p = P[cyc[i]]
+        out.append([p[0] + s * m[0], p[1] + s * m[1], p[2] + s * m[2]])
+    return out
+
+
+def inset(mesh: PolyMesh, face: int, thickness: float) -> PolyMesh:
+    """I: shrink ``face`` onto new inner vertices, every inner edge ``thickness`` from its outer edge."""
+    what = f"inset {face}"
+    if not thickness > 0.0:
+        raise OpError(f"{what}: the thickness must be positive")
+    conn = connectivity(mesh)
+    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
+    P = _vertex_list(mesh)
+    n = face_normal(P, cyc)
+    if n is None:
+        raise OpError(f"{what}: face {face} has zero area")
+    diag = _diagonal(P)
+    pts = inset_points(P, cyc, thickness, n, what)
+    faces, touched = _cap_and_ring(P, conn.faces, face, pts)
+    new_conn = MeshConn.updated(conn, faces, touched, len(P))
+    _check(what, P, faces, new_conn, touched, dict.fromkeys(touched, n), diag)
+    return make_mesh(P, faces, new_conn)
+
+
+# --- L: edge loop ----------------------------------------------------------------------------------------
+
+def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int]], list[int], bool]:
+    """The ring of opposite edges through quads that ``edge_loop`` cuts.
+
+    Returns ``(ring edges, crossed quads as (face, corner of the entering edge), end faces, closed)``:
+    ``edge`` first, then the edges met walking across its first face, then (open rings) those met
+    walking across its second face. A walk stops at a non-quad face (an end face, which gets a
+    T-vertex) or at a boundary. A quad crossed twice (a self-crossing ring) raises OpError.
+    """
+    faces, half, edge_id = conn.faces, conn.half, conn.edge_id
+    ring = [edge]
+    quads: list[tuple[int, int]] = []
+    ends: list[int] = []
+    seen: set[int] = set()
+    closed = False
+    for side in (0, 1):
+        e = edge
+        f = conn.edge_faces(edge)[side]
+        while True:
+            if f < 0:
+                break
+            cyc = faces[f]
+            if len(cyc) != 4:
+                ends.append(f)
+                break
+            if f in seen:
+                raise OpError(f"edge_loop {edge}: the edge ring crosses itself")
+            seen.add(f)
+            u, v = conn.edges[e]
+            i = cyc.index(u) if half.get((u, v)) == f else cyc.index(v)
+            quads.append((f, i))
+            a, b = cyc[(i + 2) % 4], cyc[(i + 3) % 4]
+            e = edge_id[(a, b) if a < b else (b, a)]
+            if e == edge:
+                closed = True
+                break
+            ring.append(e)
+            f = half.get((b, a), -1)
+        if closed:
+            break
+    return ring, quads, ends, closed
+
+
+def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
+    """L: cut the ring of opposite edges through ``edge`` at their midpoints and join the cuts across quads."""
+    what = f"edge_loop {edge}"
+    conn = connectivity(mesh)
+    _index(edge, len(conn.edges), what, "edge")
+    ring, quads, ends, _ = edge_ring(conn, edge)
+    if not quads:
+        raise OpError(f"{what}: the edge has no quad to cut across")
+    P = _vertex_list(mesh)
+    diag = _diagonal(P)
+    faces = list(conn.faces)
+    refs = {f: face_normal(P, faces[f]) for f, _ in quads}
+    refs.update((f, face_normal(P, faces[f])) for f in ends)
+    base = len(P)
+    mid: dict[tuple[int, int], int] = {}
+    for j, e in enumerate(ring):
+        u, v = conn.edges[e]
+        pu, pv = P[u], P[v]
+        P.append([0.5 * (pu[0] + pv[0]), 0.5 * (pu[1] + pv[1]), 0.5 * (pu[2] + pv[2])])
+        mid[(u, v)] = mid[(v, u)] = base + j
+    touched = []
+    for f, i in quads:
+        c = faces[f]
+        m0 = mid[(c[i], c[(i + 1) % 4])]
+        m1 = mid[(c[(i + 2) % 4], c[(i + 3) % 4])]
+        h1 = (c[i], m0, m1, c[(i + 3) % 4])
+        h2 = (m0, c[(i + 1) % 4], c[(i + 2) % 4], m1)
+        keep, other = (h1, h2) if i < 2 else (h2, h1)
+        r = keep.index(c[0])
+        faces[f] = keep[r:] + keep[:r]
+        faces.append(other)
+        touched += (f, len(faces) - 1)
+        refs[len(faces) - 1] = refs[f]
+    for f in ends:
+        cyc = list(faces[f])
+        out = []
+        for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+            out.append(u)
+            m = mid.get((u, v))
+            if m is not None:
+                out.append(m)
+        faces[f] = tuple(out)
+        touched.append(f)
+    touched = list(dict.fromkeys(touched))
+    new_conn = MeshConn.updated(conn, faces, touched, len(P))
+    _check(what, P, faces, new_conn, touched, refs, diag)
+    return make_mesh(P, faces, new_conn)
+
+
+# --- B: bevel --------------------------------------------------------------------------------------------
+
+def _fan(conn: MeshConn, v: int, start: int, what: str) -> list[tuple[int, int, int]]:
+    """Faces around vertex ``v`` from face ``start`` as ``(face, prev vertex, next vertex)``, walking
+    from a face with corner ``(p, v, n)`` to the face that holds the directed edge ``v -> p``."""
+    out = []
+    f = start
+    while True:
+        cyc = conn.faces[f]
+        i = cyc.index(v)
+        p = cyc[i - 1]
+        out.append((f, p, cyc[(i + 1) % len(cyc)]))
+        f = conn.half.get((v, p), -1)
+        if f < 0:
+            raise OpError(f"{what}: vertex {v} is on the boundary")
+        if f == start:
+            return out
+        if len(out) > len(conn.faces):
+            raise OpError(f"{what}: vertex {v} is not manifold")
+
+
+def _bevel_end(P: list[list[float]], faces: list[tuple[int, ...]], fan: list[tuple[int, int, int]],
+               v: int, w: int, offset: float, what: str) -> list[tuple[int, list[float]]]:
+    """Boundary points replacing end ``v`` of the bevelled edge ``v-w``, one per other edge at ``v`` in
+    fan order, as ``(neighbour, point)``. The two edges next to ``v-w`` get the point at distance
+    ``offset`` from the line ``v-w`` in the plane of the two edges (Blender's offset_meet); any further
+    edge gets the point ``offset`` along it (Blender's slide_dist for a terminal edge)."""
+    pv = P[v]
+    e_dir = _unit(_sub(P[w], pv))
+    k = len(fan)
+    out = []
+    for j in range(k - 1):
+        x = fan[j][1]
+        d_vec = _sub(P[x], pv)
+        length = _norm(d_vec)
+        if e_dir is None or length == 0.0:
+            raise OpError(f"{what}: an edge at vertex {v} has zero length")
+        u = (d_vec[0] / length, d_vec[1] / length, d_vec[2] / length)
+        if j == 0 or j == k - 2:
+            f = fan[0][0] if j == 0 else fan[-1][0]
+            n = face_normal(P, faces[f])
+            prev_dir, next_dir = (u, e_dir) if j == 0 else (e_dir, u)
+            # corner (prev, v, next) of face f: (v - prev) x (next - v) must point along its normal
+            turn = _dot(_cross((-prev_dir[0], -prev_dir[1], -prev_dir[2]), next_dir), n) if n else 0.0
+            if turn < _BEVEL_MIN_SIN:
+                raise OpError(f"{what}: the corner at vertex {v} in face {f} is too flat, too sharp or reflex")
+            slide = offset / _norm(_cross(u, e_dir))
+        else:
+            slide = offset
+        if slide >= length:
+            raise OpError(f"{what}: the offset runs past the end of edge {v}-{x}")
+        out.append((x, [pv[0] + slide * u[0], pv[1] + slide * u[1], pv[2] + slide * u[2]]))
+    return out
+
+
+def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
+    """B: replace ``edge`` by a quad whose long edges lie ``offset`` from it in each adjacent face."""
+    what = f"bevel {edge}"
+    if not offset > 0.0:
+        raise OpError(f"{what}: the offset must be positive")
+    conn = connectivity(mesh)
+    _index(edge, len(conn.edges), what, "edge")
+    a, b = conn.edges[edge]
+    f1, f2 = conn.edge_faces(edge)
+    if f2 < 0:
+        raise OpError(f"{what}: the edge is on the boundary")
+    fan_a = _fan(conn, a, f1, what)
+    fan_b = _fan(conn, b, f2, what)
+    if len(fan_a) < 3 or len(fan_b) < 3:
+        raise OpError(f"{what}: an end vertex has fewer than three edges")
+    if {f for f, _, _ in fan_a} & {f for f, _, _ in fan_b} != {f1, f2}:
+        raise OpError(f"{what}: a face other than the edge's two holds both its ends")
+    P = _vertex_list(mesh)
+    diag = _diagonal(P)
+    faces = list(conn.faces)
+    pts_a = _bevel_end(P, faces, fan_a, a, b, offset, what)
+    pts_b = _bevel_end(P, faces, fan_b, b, a, offset, what)
+    refs: dict[int, Vec] = {}
+    vertex_normal = []
+    for fan in (fan_a, fan_b):
+        acc = [0.0, 0.0, 0.0]
+        for f, _, _ in fan:
+            n = face_normal(P, faces[f])
+            if n is None:
+                raise OpError(f"{what}: face {f} has zero area")
+            refs[f] = n
+            acc = [acc[0] + n[0], acc[1] + n[1], acc[2] + n[2]]
+        vertex_normal.append(_unit(acc))
+    # boundary vertices: at end a the f1-side one (first in fan order) takes a's index; at end b the f1-side
+    # one (last in fan order) takes b's index; the others are appended, end a first, in polygon order
+    order_a = pts_a
+    order_b = pts_b[-1:] + pts_b[:-1]
+    index_a: dict[int, int] = {}
+    index_b: dict[int, int] = {}
+    for end_v, order, index in ((a, order_a, index_a), (b, order_b, index_b)):
+        x0, p0 = order[0]
+        P[end_v] = p0
+        index[x0] = end_v
+    for order, index in ((order_a, index_a), (order_b, index_b)):
+        for x, p in order[1:]:
+            index[x] = len(P)
+            P.append(p)
+    for f in dict.fromkeys(f for f, _, _ in fan_a + fan_b):
+        cyc = faces[f]
+        k = len(cyc)
+        out = []
+        for i, c in enumerate(cyc):
+            if c == a or c == b:
+                index, other = (index_a, b) if c == a else (index_b, a)
+                prv, nxt = cyc[i - 1], cyc[(i + 1) % k]
+                if prv != other:
+                    out.append(index[prv])
+                if nxt != other:
+                    out.append(index[nxt])
+            else:
+                out.append(c)
+        faces[f] = tuple(out)
+    a1, a2 = index_a[pts_a[0][0]], index_a[pts_a[-1][0]]
+    b2, b1 = index_b[pts_b[0][0]], index_b[pts_b[-1][0]]
+    faces.append((a1, a2, b2, b1))
+    quad = len(faces) - 1
+    n1, n2 = refs[f1], refs[f2]
+    touched = list(dict.fromkeys(f for f, _, _ in fan_a + fan_b)) + [quad]
+    refs[quad] = _unit((n1[0] + n2[0], n1[1] + n2[1], n1[2] + n2[2])) or n1
+    for order, index, vn in ((order_a, index_a, vertex_normal[0]), (order_b, index_b, vertex_normal[1])):
+        if len(order) >= 3:
+            faces.append(tuple(index[x] for x, _ in order))
+            touched.append(len(faces) - 1)
+            if vn is not None:
+                refs[len(faces) - 1] = vn
+    new_conn = MeshConn.updated(conn, faces, touched, len(P))
+    _check(what, P, faces, new_conn, touched, refs, diag)
+    return make_mesh(P, faces, new_conn)
