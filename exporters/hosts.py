@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from gsr_cad.errors import ExportError
@@ -67,7 +67,10 @@ def run_freecad(script: str | Path, args: Sequence[str] = (), timeout: float = 6
         os.environ.pop("GSR_ARGS", None)
 
 
-def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    """Render ``scad`` to ``out`` (format from its suffix, e.g. STL) with OpenSCAD, no display needed."""
+def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600,
+                 defines: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Render ``scad`` to ``out`` (format from its suffix, e.g. STL) with OpenSCAD, no display needed;
+    ``defines`` override top-level variables (``-D name=value``, value as OpenSCAD source)."""
     exe = _require("openscad")
-    return _run([exe, "-o", str(out), str(scad)], "openscad", timeout)
+    extra = [arg for name, value in (defines or {}).items() for arg in ("-D", f"{name}={value}")]
+    return _run([exe, *extra, "-o", str(out), str(scad)], "openscad", timeout)

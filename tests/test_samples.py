@@ -249,15 +249,6 @@ def test_cli_truth_of_a_sample_without_one_is_a_note_not_a_file(gsr, tmp_path):
 
 # --- benchmarks/curves.py --quick -----------------------------------------------------------------------
 
-def _has_reconstruct_curve() -> bool:
-    try:
-        from gsr_cad.reconstruct.curve import reconstruct_curve  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-@pytest.mark.skipif(not _has_reconstruct_curve(), reason="gsr_cad.reconstruct.curve.reconstruct_curve not built yet")
 def test_quick_curve_benchmark_runs_and_baselines_meet_the_tolerance(tmp_path):
     import subprocess
     import sys
@@ -270,7 +261,7 @@ def test_quick_curve_benchmark_runs_and_baselines_meet_the_tolerance(tmp_path):
     rows = [[c.strip() for c in line.strip("|").split("|")] for line in out.read_text().splitlines()
             if line.startswith("| bspline_05")]
     by_method = {r[1]: r for r in rows}
-    assert list(by_method) == ["gsr default", "gsr paper", "scipy splprep", "scipy lsq"]
+    assert list(by_method) == ["gsr default", "gsr @ tolerance", "gsr paper", "scipy splprep", "scipy lsq"]
     for r in rows:
         n_ctrl, data_max, clean_mean, clean_max, seconds = int(r[2]), float(r[3]), float(r[5]), float(r[6]), float(r[7])
         assert n_ctrl >= 4 and 0 <= clean_mean <= clean_max and seconds >= 0 and data_max >= 0

@@ -10,8 +10,9 @@ template. Two evaluations are offered:
   distances); the score depends on the genome only through its number of points ``n`` and is cached per
   ``n``. The cost ``exp(2 n ln m / m) * max(rms / diag, tolerance)^2`` is the exponential of a BIC per
   sample: exact data get their exact count back, noisy data are not over-fitted, and smooth data use the
-  fewest points that reach the tolerance. The winner's placement is written back as ``move_point`` ops
-  appended to its insertions, so the saved history replays exactly to the result.
+  fewest points that reach the tolerance. The winner's placement is written back into its history
+  (insertions at their final positions, then ``move_point`` ops for the template's free points), so the
+  saved genome replays exactly to the result.
 """
 
 from __future__ import annotations
@@ -192,16 +193,27 @@ class CurveProblem:
         return cost
 
     def polished(self, genome: tuple) -> tuple:
-        """The genome's insertions followed by ``move_point`` ops onto the least-squares placement."""
-        adds = tuple(op for op in genome if isinstance(op, curve_ops.AddPoint))
-        poly = genome_mod.replay(self.template, adds)
-        fitted = self.final_fit(poly.n).ctrl
+        """The genome rewritten onto the least-squares placement, as a clean modelling history.
+
+        The genome's insertions are kept in order (same indices) but each inserts its point where the
+        placement puts it; the template's free points then get one ``move_point`` each. Replaying the
+        result gives the placement exactly (up to the rounding of ``template + delta``).
+        """
+        adds = [op for op in genome if isinstance(op, curve_ops.AddPoint)]
+        ids = list(range(self.template.n))
+        for k, op in enumerate(adds):
+            ids.insert(op.index, self.template.n + k)
+        fitted = self.final_fit(len(ids)).ctrl
+        where = {point_id: fitted[i] for i, point_id in enumerate(ids)}
+        placed = tuple(curve_ops.AddPoint(op.index, tuple(float(v) for v in where[self.template.n + k]))
+                       for k, op in enumerate(adds))
+        poly = genome_mod.replay(self.template, placed)
         moves = []
         for i in range(1, poly.n - 1):
             delta = fitted[i] - poly.points[i]
             if np.any(delta != 0.0):
                 moves.append(curve_ops.MovePoint(i, (float(delta[0]), float(delta[1]))))
-        return adds + tuple(moves)
+        return placed + tuple(moves)
 
     def threshold(self) -> float | None:
         """Stop threshold in cost units: explicit, automatic (< 0: the paper's mean index distance

@@ -1,0 +1,143 @@
+"""CadQuery export: a plain ``*_cadquery.py`` script that rebuilds the exact B-spline and writes a STEP.
+
+The script builds ``Geom_BSplineCurve`` from the poles, knots, multiplicities and degree through the OCP
+that comes with CadQuery (array types from ``OCP.TColgp``/``OCP.TColStd``, or ``OCP.collections`` on
+OCP 8), wraps it as ``cq.Edge``, and exports STEP next to itself (or to the path given as its first
+argument). In CQ-editor it shows the curve and the control polygon instead.
+
+CadQuery and build123d ship different OCP builds that must not share a Python environment, so
+validation runs the script with the interpreter of a separate venv (``GSR_CADQUERY_PYTHON``, else
+``.venv-cadquery`` in the project, made by ``scripts/cadquery-venv.sh``) and reads its STEP back with
+our OCP like the STEP exporter does.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from pathlib import Path
+from typing import Any
+
+from gsr_cad.atomic import write_text
+from gsr_cad.errors import ExportError
+
+from .base import Check, Exporter, curve_spline, failed, num, scratch_dir, skipped
+from .step import check_step_curve
+
+_SCRIPT = '''"""{filename}: a gsr_cad {scheme} curve ({n} control points, degree {degree}) for CadQuery.
+
+The curve is rebuilt exactly from its poles, knots and multiplicities (not re-interpolated).
+Run: python {filename} [OUT.step]   (needs CadQuery; writes {step_name} next to this file by default)
+In CQ-editor, the curve and its control polygon are shown.
+"""
+import sys
+from pathlib import Path
+
+import cadquery as cq
+from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
+from OCP.Geom import Geom_BSplineCurve
+from OCP.gp import gp_Pnt
+
+try:
+    from OCP.TColgp import TColgp_Array1OfPnt as PointArray
+    from OCP.TColStd import TColStd_Array1OfInteger as IntArray
+    from OCP.TColStd import TColStd_Array1OfReal as RealArray
+except ImportError:  # OCP 8 moved the array types
+    from OCP.collections import Array1_double as RealArray
+    from OCP.collections import Array1_gp_Pnt as PointArray
+    from OCP.collections import Array1_int as IntArray
+
+DEGREE = {degree}
+POLES = [{poles}]
+KNOTS = [{knots}]
+MULTS = [{mults}]
+
+
+def _array(kind, values, convert):
+    array = kind(1, len(values))
+    for i, value in enumerate(values, start=1):
+        array.SetValue(i, convert(value))
+    return array
+
+
+def bspline_edge():
+    """The exact curve as a CadQuery edge."""
+    curve = Geom_BSplineCurve(_array(PointArray, POLES, lambda p: gp_Pnt(p[0], p[1], 0.0)),
+                              _array(RealArray, KNOTS, float), _array(IntArray, MULTS, int), DEGREE, False)
+    return cq.Edge(BRepBuilderAPI_MakeEdge(curve).Edge())
+
+
+curve = cq.Workplane("XY").add(bspline_edge())
+control_polygon = cq.Workplane("XY").polyline(POLES)
+
+if __name__ == "__main__":
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).with_suffix(".step")
+    cq.exporters.export(curve, str(out), exportType="STEP")
+    print(out)
+elif "show_object" in globals():
+    show_object(curve, name="curve")  # noqa: F821 (CQ-editor)
+    show_object(control_polygon, name="control polygon", options={{"color": "gray"}})  # noqa: F821
+'''
+
+
+def cadquery_python() -> Path | None:
+    """The interpreter of the CadQuery venv (``GSR_CADQUERY_PYTHON`` or ``.venv-cadquery``), or None."""
+    override = os.environ.get("GSR_CADQUERY_PYTHON")
+    candidates = [Path(override)] if override else [
+        Path(__file__).resolve().parents[1] / ".venv-cadquery" / "bin" / "python",
+        Path.cwd() / ".venv-cadquery" / "bin" / "python",
+    ]
+    return next((p for p in candidates if p.is_file() and os.access(p, os.X_OK)), None)
+
+
+def run_cadquery_script(script: Path, args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run a script with the CadQuery interpreter; ExportError when it is missing, fails or times out."""
+    python = cadquery_python()
+    if python is None:
+        raise ExportError("no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)")
+    try:
+        proc = subprocess.run([str(python), str(script), *args], capture_output=True, text=True, timeout=timeout,
+                              stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise ExportError(f"cadquery did not finish within {timeout:.0f} s") from None
+    except OSError as exc:
+        raise ExportError(f"cannot run {python}: {exc.strerror or exc}") from None
+    if proc.returncode != 0:
+        tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["no output"]
+        raise ExportError(f"cadquery failed (exit {proc.returncode}): {tail[0]}")
+    return proc
+
+
+class CadqueryExporter(Exporter):
+    """``*_cadquery.py``: a CadQuery script rebuilding the exact B-spline and exporting STEP."""
+
+    name = "cadquery"
+    kinds = ("curve",)
+    suffixes = ("_cadquery.py",)
+    host = "cadquery"
+
+    def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        spline = curve_spline(result)
+        filename = self.filename(stem)
+        text = _SCRIPT.format(
+            filename=filename, scheme=result.config.get("scheme", "bspline"), n=len(spline.poles),
+            degree=spline.degree, step_name=Path(filename).with_suffix(".step").name,
+            poles=", ".join(f"({num(x)}, {num(y)})" for x, y in spline.poles),
+            knots=", ".join(num(k) for k in spline.breakpoints),
+            mults=", ".join(str(int(m)) for m in spline.multiplicities))
+        return [write_text(out_dir / filename, text)]
+
+    def validate_curve(self, path: Path, result: Any) -> list[Check]:
+        if cadquery_python() is None:
+            return [skipped(path, self.host, "run script",
+                            "no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)")]
+        spline = curve_spline(result)
+        with scratch_dir() as tmp:
+            step = tmp / "cadquery.step"
+            try:
+                run_cadquery_script(path, [str(step)])
+            except ExportError as exc:
+                return [failed(path, self.host, "run script", str(exc))]
+            if not step.is_file():
+                return [failed(path, self.host, "run script", "the script wrote no STEP file")]
+            return check_step_curve(step, self.host, spline, path)

@@ -1,0 +1,234 @@
+"""OpenSCAD export: the curve as a 2-D stroke of configurable width, and the control polygon.
+
+OpenSCAD has no spline primitive, so the ``.scad`` file carries the curve sampled finely enough that the
+chords stay within 1 % of the default stroke width of it; module ``gsr_curve(width)`` offsets every chord
+by ``width / 2`` to both sides and joins neighbours with bevels, a union that stays right where the curve
+crosses itself (one offset outline would not). ``gsr_control_polygon(width)`` draws the control polygon as
+hulls of circle pairs. Top-level variables pick what is drawn: ``width``, ``part`` ("both", "curve",
+"control_polygon") and ``height`` (> 0 extrudes the drawing for STL). OpenSCAD snaps 2-D geometry to a
+1/65536 grid, so the modules draw at ``gsr_unit`` (a power of ten making the diagonal >= 1000) times the
+size and scale the result back; it still writes 6 significant digits, so coordinates far from the origin
+relative to the curve's size lose precision in its STL/DXF/SVG output.
+
+Validation renders ``part="curve"`` and ``part="control_polygon"`` extruded to STL with ``openscad`` and
+checks that the solids are non-empty, that every vertex lies within half the stroke width of our exact
+curve (or control polygon), and that our curve (control points) lies inside the rendered footprint.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gsr_cad.atomic import write_text
+from gsr_cad.errors import ExportError
+from gsr_cad.geometry import distance
+
+from . import hosts
+from .base import Check, CurveSpline, Exporter, curve_spline, failed, measured, num, scratch_dir, skipped
+
+WIDTH_FRACTION = 0.01
+SAG_FRACTION = 0.01
+MAX_PER_SPAN = 1024
+_HEIGHT = 1.0
+_DIGITS_TOL = 1e-5  # OpenSCAD writes 6 significant digits
+_GRID = 2.0 ** -16  # and snaps 2-D geometry to this grid (in drawing units)
+
+
+def stroke_width(spline: CurveSpline) -> float:
+    """Default stroke width: 1 % of the control polygon's diagonal."""
+    return WIDTH_FRACTION * spline.diagonal
+
+
+def stroke_samples(spline: CurveSpline, width: float) -> np.ndarray:
+    """Curve samples whose chords deviate from the curve by at most ``SAG_FRACTION * width`` (per-span
+    count doubled from 16 until the midpoint sag is small enough, at most ``MAX_PER_SPAN``)."""
+    per = 16
+    while True:
+        u = spline.params(per)
+        pts = spline.points(u)
+        mid = spline.points(0.5 * (u[:-1] + u[1:]))
+        chord = pts[1:] - pts[:-1]
+        len2 = np.einsum("ij,ij->i", chord, chord)
+        s = np.clip(np.divide(np.einsum("ij,ij->i", mid - pts[:-1], chord), len2, out=np.zeros(len(len2)),
+                              where=len2 > 0), 0.0, 1.0)
+        sag = np.linalg.norm(mid - pts[:-1] - s[:, None] * chord, axis=1).max()
+        if sag <= SAG_FRACTION * width or per >= MAX_PER_SPAN:
+            return pts
+        per *= 2
+
+
+def drawing_unit(spline: CurveSpline) -> int:
+    """A power of ten that makes the drawing's diagonal at least 1000 (OpenSCAD's grid is 1/65536)."""
+    return 10 ** max(0, math.ceil(math.log10(1000.0 / spline.diagonal)))
+
+
+def distinct(points: np.ndarray) -> np.ndarray:
+    """Drop consecutive repeats (zero-length segments have no normal); ExportError when no length is left."""
+    p = np.asarray(points, dtype=float)
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    p = p[np.concatenate([[True], step > 1e-12 * max(1.0, float(np.abs(p).max()))])]
+    if len(p) < 2:
+        raise ExportError("the curve has no length: nothing to stroke")
+    return p
+
+
+def _rows(a: np.ndarray) -> str:
+    return ",\n  ".join(f"[{num(x)}, {num(y)}]" for x, y in a)
+
+
+_SCAD = """// {title}
+// Modules: gsr_curve(width) = the curve as a 2-D stroke, gsr_control_polygon(width) = its control polygon.
+// Customize: openscad -D width={width} -D 'part="curve"' -D height=2 -o out.stl {filename}
+
+width = {width};  // stroke width of the curve
+part = "both";  // [both, curve, control_polygon]
+height = 0;  // > 0: extrude the drawing to this height (for STL)
+
+// {n} samples of the {scheme} curve (degree {degree})
+gsr_curve_points = [
+  {points}
+];
+gsr_control_points = [
+  {poles}
+];
+
+function gsr_normal(a, b) = let (d = b - a) [-d[1], d[0]] / norm(d);
+
+// OpenSCAD snaps 2-D geometry to a 1/65536 grid, so the modules draw gsr_unit times larger and scale back.
+gsr_unit = {unit};
+
+// The stroke: one rectangle per chord (offset by width / 2 on both sides) and bevel joins between them;
+// their union is right even where the curve crosses itself.
+module gsr_curve(width = width) {{
+  p = gsr_unit * gsr_curve_points;
+  h = gsr_unit * width / 2;
+  scale(1 / gsr_unit) union() {{
+    for (i = [0:len(p) - 2]) let (n = h * gsr_normal(p[i], p[i + 1]))
+      polygon([p[i] + n, p[i + 1] + n, p[i + 1] - n, p[i] - n]);
+    for (i = [1:len(p) - 2]) let (a = h * gsr_normal(p[i - 1], p[i]), b = h * gsr_normal(p[i], p[i + 1]))
+      if (norm(a - b) > 1e-9 * h) {{
+        polygon([p[i], p[i] + a, p[i] + b]);
+        polygon([p[i], p[i] - b, p[i] - a]);
+      }}
+  }}
+}}
+
+module gsr_control_polygon(width = width / 3) {{
+  p = gsr_unit * gsr_control_points;
+  scale(1 / gsr_unit) for (i = [0:len(p) - 2])
+    hull() {{
+      translate(p[i]) circle(d = gsr_unit * width, $fn = 16);
+      translate(p[i + 1]) circle(d = gsr_unit * width, $fn = 16);
+    }}
+}}
+
+module gsr_drawing() {{
+  if (part != "control_polygon") color("red") gsr_curve();
+  if (part != "curve") color("gray") gsr_control_polygon();
+}}
+
+if (height > 0) linear_extrude(height = height) gsr_drawing();
+else gsr_drawing();
+"""
+
+
+def footprint_distance(points: np.ndarray, tri: np.ndarray, chunk: int = 256) -> np.ndarray:
+    """Distance of each 2-D point to the union of triangles ``(t, 3, 2)``: 0 inside, else to the nearest edge."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0, v1 = b - a, c - a
+    den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    ok = np.abs(den) > 0
+    den = np.where(ok, den, 1.0)
+    inside = np.zeros(len(points), dtype=bool)
+    for start in range(0, len(points), chunk):
+        w = points[start:start + chunk, None, :] - a[None]
+        s = (w[..., 0] * v1[:, 1] - w[..., 1] * v1[:, 0]) / den
+        t = (v0[:, 0] * w[..., 1] - v0[:, 1] * w[..., 0]) / den
+        inside[start:start + chunk] = ((s >= 0) & (t >= 0) & (s + t <= 1) & ok).any(axis=1)
+    out = np.zeros(len(points))
+    if not inside.all():
+        ea = np.concatenate([a, b, c])
+        ab = np.concatenate([b, c, a]) - ea
+        len2 = np.maximum(np.einsum("ij,ij->i", ab, ab), np.finfo(float).tiny)
+        q = points[~inside]
+        d = np.empty(len(q))
+        for start in range(0, len(q), chunk):
+            w = q[start:start + chunk, None, :] - ea[None]
+            s = np.clip(np.einsum("qed,ed->qe", w, ab) / len2, 0.0, 1.0)
+            d[start:start + chunk] = np.linalg.norm(w - s[..., None] * ab[None], axis=2).min(axis=1)
+        out[~inside] = d
+    return out
+
+
+class OpenscadExporter(Exporter):
+    """``*.scad``: the curve as a stroke of configurable width plus the control polygon, as modules."""
+
+    name = "scad"
+    kinds = ("curve",)
+    suffixes = (".scad",)
+    host = "openscad"
+
+    def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        spline = curve_spline(result)
+        width = stroke_width(spline)
+        points = distinct(stroke_samples(spline, width))
+        filename = self.filename(stem)
+        text = _SCAD.format(
+            title=f"{filename}: a gsr_cad curve with {len(spline.poles)} control points (OpenSCAD 2-D)",
+            width=num(width), filename=filename, n=len(points), scheme=result.config.get("scheme", "bspline"),
+            degree=spline.degree, points=_rows(points), poles=_rows(spline.poles), unit=drawing_unit(spline))
+        return [write_text(out_dir / filename, text)]
+
+    def validate_curve(self, path: Path, result: Any) -> list[Check]:
+        if hosts.find_host("openscad") is None:
+            return [skipped(path, self.host, "render", "OpenSCAD is not installed (apt-get install openscad)")]
+        spline = curve_spline(result)
+        width = stroke_width(spline)
+        checks: list[Check] = []
+        with scratch_dir() as tmp:
+            for part, half, sag, ours, inner in (
+                    ("curve", width / 2, 2 * SAG_FRACTION * width, "curve", spline.points(spline.params(32))),
+                    ("control_polygon", width / 6, 0.0, "control polygon", spline.poles)):
+                stl = tmp / f"{part}.stl"
+                try:
+                    hosts.run_openscad(path, stl, timeout=120, defines={"part": f'"{part}"', "width": num(width),
+                                                                        "height": num(_HEIGHT)})
+                    vertices, triangles = _read_stl(stl)
+                except ExportError as exc:
+                    checks.append(failed(path, self.host, f"render {part}", str(exc)))
+                    continue
+                checks += self._compare(path, part, ours, half, sag, vertices, triangles, inner, spline)
+        return checks
+
+    def _compare(self, path: Path, part: str, ours: str, half: float, sag: float, vertices: np.ndarray,
+                 triangles: np.ndarray, inner: np.ndarray, spline: CurveSpline) -> list[Check]:
+        if len(triangles) == 0:
+            return [failed(path, self.host, f"{part} solid", "OpenSCAD rendered nothing")]
+        rounding = _DIGITS_TOL * float(np.abs(spline.poles).max()) + _GRID / drawing_unit(spline)
+        xy = vertices[:, :2]
+        dist = distance.point_to_polyline(xy, spline.dense(256) if part == "curve" else spline.poles)
+        z = vertices[:, 2]
+        bottom = triangles[np.all(np.abs(z[triangles]) <= rounding, axis=1)]
+        outside = footprint_distance(inner, xy[bottom]) if len(bottom) else np.full(len(inner), np.inf)
+        return [
+            measured(path, self.host, f"{part}: extrusion height", float(abs(np.ptp(z) - _HEIGHT)), rounding),
+            measured(path, self.host, f"{part}: vertices within half width of our {ours}", float(dist.max()),
+                     half + sag + rounding, f"half width {half:.3g} + chord sag {sag:.2g}"),
+            measured(path, self.host, f"{part}: our {ours} inside the footprint", float(outside.max()), rounding,
+                     f"{len(inner)} points; deviation = farthest outside"),
+        ]
+
+
+def _read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of an STL file (trimesh, vertices merged); ExportError when unreadable."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(str(path), file_type="stl", force="mesh", process=True)
+    except Exception as exc:  # trimesh raises assorted errors on broken files
+        raise ExportError(f"cannot read OpenSCAD's STL: {exc}") from None
+    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
