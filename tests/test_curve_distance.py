@@ -158,3 +158,14 @@ def test_single_point_polyline_and_bad_input():
         D.foot_points(wiggly(0), pts, np.array([0.5]))
     with pytest.raises(InputError):
         D.point_to_curve(wiggly(0), pts, dense=1)
+
+
+def test_point_to_curve_near_a_self_approach_finds_the_true_branch():
+    """A curve that passes close to itself: the nearest dense sample alone seeds the wrong foot point."""
+    ctrl = np.array([[0, 0], [12.56996535, -0.41763473], [12.76558906, 2.50161236], [5.02490944, 2.4262604],
+                     [1.68545872, 3.60382531], [0, 0], [3.06873289, 0.25845934], [8.27865888, 1.84045837],
+                     [0.42336002, 12], [12, 0.42336002]])
+    point = np.array([[10.5349, 2.00684]])
+    brute = point_to_curve(ctrl, point, dense=200_000, seeds=12)
+    assert point_to_curve(ctrl, point)[0] == pytest.approx(brute[0], abs=1e-9)
+    assert brute[0] == pytest.approx(0.0890358, abs=1e-6)

@@ -99,14 +99,23 @@ def foot_points(ctrl: np.ndarray, points: np.ndarray, params0: np.ndarray, degre
     return t, dist
 
 
-def point_to_curve(ctrl: np.ndarray, points: np.ndarray, degree: int = 3, dense: int = 2048) -> np.ndarray:
-    """Geometric distance of each point to the B-spline curve (nearest of ``dense`` samples, then foot points)."""
+def point_to_curve(ctrl: np.ndarray, points: np.ndarray, degree: int = 3, dense: int = 2048,
+                   seeds: int = 6) -> np.ndarray:
+    """Geometric distance of each point to the B-spline curve.
+
+    Foot points are refined from the ``seeds`` nearest of ``dense`` curve samples and the smallest
+    distance is kept: one seed can sit on the wrong branch where the curve passes close to itself, and
+    every refined foot point is a true curve point, so the minimum is never an underestimate.
+    """
     degree = _check_degree(degree)
     c = _check_ctrl(ctrl, degree)
     p = _as_points(points, "points", c.shape[1])
     dense = _check_count(dense, "dense", 2)
-    _, idx = cKDTree(sample_uniform(c, dense, degree)).query(p)
-    return foot_points(c, p, idx / (dense - 1), degree)[1]
+    k = int(min(max(1, seeds), dense))
+    _, idx = cKDTree(sample_uniform(c, dense, degree)).query(p, k=k)
+    idx = np.asarray(idx).reshape(len(p), k)
+    dist = foot_points(c, np.repeat(p, k, axis=0), idx.ravel() / (dense - 1), degree)[1]
+    return dist.reshape(len(p), k).min(axis=1)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, len2: np.ndarray) -> np.ndarray:
