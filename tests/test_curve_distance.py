@@ -166,6 +166,6 @@ def test_point_to_curve_near_a_self_approach_finds_the_true_branch():
                      [1.68545872, 3.60382531], [0, 0], [3.06873289, 0.25845934], [8.27865888, 1.84045837],
                      [0.42336002, 12], [12, 0.42336002]])
     point = np.array([[10.5349, 2.00684]])
-    brute = point_to_curve(ctrl, point, dense=200_000, seeds=12)
-    assert point_to_curve(ctrl, point)[0] == pytest.approx(brute[0], abs=1e-9)
+    brute = D.point_to_curve(ctrl, point, dense=200_000, seeds=12)
+    assert D.point_to_curve(ctrl, point)[0] == pytest.approx(brute[0], abs=1e-9)
     assert brute[0] == pytest.approx(0.0890358, abs=1e-6)
