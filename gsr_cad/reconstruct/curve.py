@@ -177,13 +177,23 @@ class CurveProblem:
         return self._fits[n]
 
     def final_fit(self, n: int) -> CurveFit:
-        """The search's fit of ``n`` points refined to convergence (done once, for the winner)."""
+        """The search's fit of ``n`` points refined to convergence (done once, for the winner).
+
+        With a max-distance limit, placements that meet it win over those that do not; then the lower
+        RMS wins (a converged least-squares fit beats a minimax one whenever both meet the limit).
+        """
         quick = self.fit(n)[0]
-        if self.config.fitness != "geometric" or self.config.max_distance is not None:
+        if self.config.fitness != "geometric":
             return quick
         fit = fit_curve(self.points, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo,
                         hi=self.hi, rtol=1e-7, warm_params=quick.params)
-        return fit if fit.rms < quick.rms else quick
+        limit = self.config.max_distance
+
+        def rank(f: CurveFit) -> tuple[bool, float]:
+            misses = limit is not None and float(f.distances.max()) / self.diag > limit
+            return misses, f.rms
+
+        return min((fit, quick), key=rank)
 
     def structure_cost(self, n: int) -> float:
         _, rms_rel, max_rel = self.fit(n)
