@@ -159,12 +159,14 @@ def _draw_convergence(ax, history: Sequence[dict[str, Any]], interrupted: bool, 
     ax.xaxis.get_major_locator().set_params(integer=True)
     if log:
         ax.set_yscale("log")
-        if finite.max() / finite.min() < 30:  # under ~1.5 decades: label the ticks in plain numbers
-            from matplotlib.ticker import FuncFormatter
+        if finite.max() / finite.min() < 30:  # under ~1.5 decades: a few plain-number ticks, no crowding
+            from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
-            plain = FuncFormatter(lambda v, _: _fmt(v))
-            ax.yaxis.set_major_formatter(plain)
-            ax.yaxis.set_minor_formatter(plain)
+            lo, hi = float(finite.min()), float(finite.max())
+            ticks = np.geomspace(lo, hi, 4) if hi > lo else np.array([lo])
+            ax.yaxis.set_major_locator(FixedLocator(ticks))
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: _fmt(v)))
+            ax.yaxis.set_minor_formatter(NullFormatter())
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(loc="best", fontsize=8)
 
