@@ -172,13 +172,14 @@ def test_registry_lists_the_curve_formats():
     assert mine <= set(reg)
     for name in mine:
         assert reg[name].exporter is not None and reg[name].exporter.name == name
-        assert reg[name].supports("curve") and not reg[name].supports("surface")
+        assert reg[name].supports("curve")
     assert mine <= set(formats.default_formats("curve"))
-    assert not mine & set(formats.default_formats("surface"))
+    assert not {"dxf", "svg"} & set(formats.default_formats("surface"))
+    assert {"step", "cadquery"} <= set(formats.default_formats("surface"))
     with pytest.raises(InputError, match="unknown format 'iges'"):
         formats.check_formats(["iges"], "curve")
     with pytest.raises(InputError, match="does not export surface results"):
-        formats.check_formats(["step"], "surface")
+        formats.check_formats(["dxf"], "surface")
     assert formats.check_formats(["svg", "dxf", "svg"], "curve") == ["svg", "dxf"]
 
 
@@ -197,10 +198,12 @@ def test_export_all_writes_every_format_or_none(tmp_path):
 
 
 def test_export_all_skips_curve_formats_for_surfaces(tmp_path):
-    surface = Result(kind="surface", config={}, seed=None, genome=(), metrics={}, history=[],
-                     control_mesh=unit_cube())
+    cube = unit_cube()
+    template = {"vertices": cube.vertices.tolist(), "faces": [list(f) for f in cube.faces]}
+    surface = Result(kind="surface", config={"template": template}, seed=None, genome=(), metrics={}, history=[],
+                     control_mesh=cube)
     written = formats.export_all(surface, tmp_path, None)
-    curve_suffixes = (".step", ".dxf", ".svg", ".FCMacro", ".scad", "_cadquery.py")
+    curve_suffixes = (".dxf", ".svg")
     assert not [p for p in written if p.name.endswith(curve_suffixes)]
 
 

@@ -1,0 +1,356 @@
+"""The Catmull-Clark limit surface as bicubic B-spline patches, for exchange with CAD (numpy/scipy only).
+
+Public API (other exporters build on it):
+
+* :func:`limit_patches` ``(mesh, tolerance_rel=1e-4, boundary="all", max_level=4) -> PatchSet``;
+* :class:`PatchSet` ``.patches`` (list of :class:`Patch`), ``.max_deviation``, ``.mean_deviation``
+  (absolute), ``.diagonal``, ``.tolerance``, ``.within_tolerance``, ``.n_exact``, ``.spans``, ``.level``;
+* :class:`Patch` ``(poles (nu, nv, 3), knots_u, knots_v, degree_u=3, degree_v=3, exact)``, knots
+  flattened and clamped on [0, 1], ``.evaluate(u, v)``;
+* :func:`limit_grids` ``(mesh, level, boundary)``: exact limit points of every patch on its parameter grid.
+
+One patch per quad of the once-refined mesh (every face is a quad there), in the refined face order of
+:mod:`~gsr_cad.geometry.subdivision`: quad ``h`` for half-edge ``h`` of the control mesh. A patch's
+parameter ``u`` runs from its corner 0 to corner 1, ``v`` from corner 0 to corner 3, so ``dS/du x dS/dv``
+points along the face normal (outwards on a closed, outward-oriented mesh).
+
+* A quad whose four corners are interior vertices of valence 4 is an exact uniform bicubic B-spline
+  patch over its 4 x 4 neighbourhood; it is written as its Bezier patch (4 x 4 poles, no interior knots).
+* Every other quad (an extraordinary vertex, a former n-gon's centre, the boundary) is fitted: with
+  ``k`` uniform spans per direction, every edge curve is fitted to the exact limit points on that edge
+  alone, ends fixed at the limit corners, so that both neighbours share the same curve and the patches
+  sew into a watertight shell; then the interior poles are the least-squares fit (boundary fixed,
+  separable, hence one pseudo-inverse per side) to the limit points of a level-``L`` grid. ``L`` and
+  ``k = 2**(L-2)`` rise until the deviation, measured at the level-``L + 1`` grid (points between the
+  fitted ones), is below ``tolerance_rel`` times the limit surface's bounding-box diagonal.
+
+Deviations are distances from exact limit points (the level-``L + 1`` grid, every patch) to the patches:
+``|patch(u, v) - limit(u, v)|`` on exact patches, the distance to a Gauss-Newton foot point (started at the
+point's own parameters, kept inside the patch, so never an underestimate) on fitted ones. Near an
+extraordinary vertex the limit's parametrization is not polynomial, so a parametric gap would mostly
+measure tangential sliding (it shrinks only by the subdominant eigenvalue per level), not shape.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections import OrderedDict
+from typing import Literal
+
+import numpy as np
+
+from ..errors import ConfigError, InputError
+from . import bspline
+from .polymesh import PolyMesh
+from .subdivision import get_catmull_clark
+
+Boundary = Literal["all", "corners"]
+DEGREE = 3
+MIN_LEVEL = 3
+"""Smallest fitting level: ``2**(MIN_LEVEL - 1) = 4`` sample intervals per patch side and 2 spans."""
+
+# Uniform cubic B-spline segment -> Bezier: rows are the Bezier poles in terms of the 4 B-spline poles.
+_BSPLINE_TO_BEZIER = np.array([[1, 4, 1, 0], [0, 4, 2, 0], [0, 2, 4, 0], [0, 1, 4, 1]], dtype=np.float64) / 6.0
+_BEZIER_KNOTS = np.array([0.0, 0, 0, 0, 1, 1, 1, 1])
+
+
+@dataclasses.dataclass(frozen=True)
+class Patch:
+    """A non-rational B-spline patch on [0, 1]^2: poles ``(nu, nv, 3)`` (``poles[i, j]``: ``i`` along u),
+    flattened clamped knot vectors; ``exact`` when it reproduces the limit surface exactly (regular)."""
+
+    poles: np.ndarray
+    knots_u: np.ndarray
+    knots_v: np.ndarray
+    degree_u: int = DEGREE
+    degree_v: int = DEGREE
+    exact: bool = False
+
+    def evaluate(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Points on the tensor grid ``u x v``, shape ``(len(u), len(v), 3)``."""
+        bu = _basis(self.knots_u, self.degree_u, np.asarray(u, dtype=np.float64))
+        bv = _basis(self.knots_v, self.degree_v, np.asarray(v, dtype=np.float64))
+        return np.einsum("ia,abc,jb->ijc", bu, self.poles, bv)
+
+    @property
+    def breakpoints_u(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distinct u knots and their multiplicities (the form OCCT and STEP use)."""
+        return np.unique(self.knots_u, return_counts=True)
+
+    @property
+    def breakpoints_v(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.unique(self.knots_v, return_counts=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class PatchSet:
+    """Patches of a limit surface and the deviation they achieve (absolute, parametric; module docstring).
+
+    ``patch_deviation[p]`` is patch ``p``'s largest deviation; ``level`` the fitting level (``2**(level-1)``
+    sample intervals per patch side), ``spans`` the knot spans per direction of every fitted patch;
+    ``closed`` says whether the control mesh (hence the shell) is closed.
+    """
+
+    patches: list[Patch]
+    max_deviation: float
+    mean_deviation: float
+    diagonal: float
+    tolerance: float
+    patch_deviation: np.ndarray
+    level: int
+    spans: int
+    closed: bool
+
+    @property
+    def within_tolerance(self) -> bool:
+        return self.max_deviation <= self.tolerance
+
+    @property
+    def n_exact(self) -> int:
+        """Number of exact (regular) patches."""
+        return sum(p.exact for p in self.patches)
+
+    def summary(self) -> dict[str, float | int | bool]:
+        """The figures an export states about itself (JSON-ready)."""
+        return {"patches": len(self.patches), "exact_patches": self.n_exact,
+                "fitted_patches": len(self.patches) - self.n_exact, "spans_per_fitted_patch": self.spans,
+                "sample_level": self.level, "max_deviation": self.max_deviation,
+                "mean_deviation": self.mean_deviation, "diagonal": self.diagonal,
+                "max_deviation_rel": self.max_deviation / self.diagonal if self.diagonal else 0.0,
+                "mean_deviation_rel": self.mean_deviation / self.diagonal if self.diagonal else 0.0,
+                "tolerance": self.tolerance, "closed": self.closed}
+
+
+def _basis(knots: np.ndarray, degree: int, x: np.ndarray) -> np.ndarray:
+    from scipy.interpolate import BSpline
+
+    return BSpline.design_matrix(np.clip(x, knots[0], knots[-1]), knots, degree).toarray()
+
+
+class _GridCache:
+    """LRU of grid vertex indices by ``(topology key, level)``: they depend on connectivity only."""
+
+    def __init__(self, size: int = 32):
+        self.size = size
+        self._items: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple, build) -> np.ndarray:
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        value = build()
+        with self._lock:
+            self._items[key] = value
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return value
+
+
+_GRIDS = _GridCache()
+
+
+def _grid_indices(corners: np.ndarray, n_quads: int, level: int) -> np.ndarray:
+    """``(n_quads, n + 1, n + 1)`` refined-vertex index at parameter ``(i / n, j / n)`` of each level-1
+    quad, ``n = 2**(level - 1)``, from the level-``level`` quads (children of a quad follow its corners)."""
+    n = 2 ** (level - 1)
+    params = np.array([[[0, 0], [1, 0], [1, 1], [0, 1]]], dtype=np.float64).repeat(n_quads, axis=0)
+    nxt, prv = np.array([1, 2, 3, 0]), np.array([3, 0, 1, 2])
+    for _ in range(level - 1):  # child i: (p_i, (p_i + p_i+1) / 2, centre, (p_i-1 + p_i) / 2)
+        centre = params.mean(axis=1, keepdims=True).repeat(4, axis=1)
+        child = np.stack([params, 0.5 * (params + params[:, nxt]), centre, 0.5 * (params[:, prv] + params)], axis=2)
+        params = child.reshape(-1, 4, 2)
+    ij = np.rint(params * n).astype(np.int64)
+    owner = np.repeat(np.arange(n_quads), 4 ** (level - 1) * 4)
+    grid = np.full((n_quads, n + 1, n + 1), -1, dtype=np.int64)
+    grid[owner, ij[..., 0].ravel(), ij[..., 1].ravel()] = corners.reshape(-1)
+    grid.setflags(write=False)
+    return grid
+
+
+def limit_grids(mesh: PolyMesh, level: int, boundary: Boundary = "all") -> np.ndarray:
+    """Exact limit-surface points ``(n_patches, n + 1, n + 1, 3)`` at parameters ``(i / n, j / n)`` of every
+    patch (``[p, i, j]``, ``i`` along u), ``n = 2**(level - 1)``, from the level-``level`` refinement."""
+    if isinstance(level, bool) or not isinstance(level, (int, np.integer)) or level < 1:
+        raise ConfigError(f"the sampling level must be a whole number >= 1, got {level!r}")
+    cc = get_catmull_clark(mesh, int(level), boundary)
+    n_quads = len(mesh.corners)
+    grid = _GRIDS.get((mesh.topology_key, int(level), boundary),
+                      lambda: _grid_indices(cc.corners, n_quads, int(level)))
+    return (cc.limit_matrix @ mesh.vertices)[grid]
+
+
+def _regular_patches(mesh: PolyMesh, boundary: str) -> tuple[np.ndarray, np.ndarray]:
+    """Regular level-1 quads and their Bezier poles ``(n_regular, 4, 4, 3)``."""
+    cc = get_catmull_clark(mesh, 1, boundary)
+    t = cc.topology
+    v1 = cc.refine_matrix @ mesh.vertices
+    org, nx, tw = t.he_origin, t.he_next, t.he_twin
+    good = (t.vertex_valence == 4) & ~t.vertex_is_boundary
+    quads = np.flatnonzero(good[org.reshape(-1, 4)].all(axis=1))
+    if quads.size == 0:
+        return quads, np.zeros((0, 4, 4, 3))
+    ids = np.empty((quads.size, 4, 4), dtype=np.int64)
+    # corner k of the quad, the two points across its side k (next to c_k, next to c_k+1), the diagonal at c_k
+    inner = [(1, 1), (2, 1), (2, 2), (1, 2)]
+    across = [((1, 0), (2, 0), (0, 0)), ((3, 1), (3, 2), (3, 0)), ((2, 3), (1, 3), (3, 3)), ((0, 2), (0, 1), (0, 3))]
+    for k in range(4):
+        h = 4 * quads + k
+        tt = tw[h]
+        s = tw[nx[tt]]
+        (xi, xj), (yi, yj), (wi, wj) = across[k]
+        ids[:, inner[k][0], inner[k][1]] = org[h]
+        ids[:, xi, xj] = org[nx[nx[tt]]]
+        ids[:, yi, yj] = org[nx[nx[nx[tt]]]]
+        ids[:, wi, wj] = org[nx[nx[nx[s]]]]
+    g = v1[ids]
+    return quads, np.einsum("ai,pijc,bj->pabc", _BSPLINE_TO_BEZIER, g, _BSPLINE_TO_BEZIER)
+
+
+def _sides(grid: np.ndarray) -> list[np.ndarray]:
+    """The four sides of ``(..., m, m, 3)`` grids, side ``k`` running from corner ``k`` to corner ``k + 1``."""
+    return [grid[:, :, 0], grid[:, -1, :], grid[:, ::-1, -1], grid[:, 0, ::-1]]
+
+
+def _set_sides(grid: np.ndarray, sides: list[np.ndarray]) -> None:
+    grid[:, :, 0] = sides[0]
+    grid[:, -1, :] = sides[1]
+    grid[:, ::-1, -1] = sides[2]
+    grid[:, 0, ::-1] = sides[3]
+
+
+def _fit(mesh: PolyMesh, boundary: str, fit: np.ndarray, fitted: np.ndarray, spans: int) -> np.ndarray:
+    """Poles ``(len(fitted), spans + 3, spans + 3, 3)`` of the fitted quads from their limit grids ``fit``."""
+    n_poles = spans + DEGREE
+    m = fit.shape[1]
+    basis = bspline.uniform_basis(n_poles, m, DEGREE)
+    pinv = np.linalg.pinv(basis[:, 1:-1])
+    # one curve per control-mesh edge of the refined mesh: fitted from the side of its first half-edge
+    t1 = get_catmull_clark(mesh, 1, boundary).topology
+    used = np.zeros(t1.n_edges, dtype=bool)
+    quad_of = np.full(len(mesh.corners), -1)
+    quad_of[fitted] = np.arange(fitted.size)
+    he = (4 * fitted[:, None] + np.arange(4)).ravel()
+    used[t1.he_edge[he]] = True
+    edges = np.flatnonzero(used)
+    curves = np.zeros((t1.n_edges, n_poles, 3))
+    # a used edge's samples come from any fitted quad that has it (identical limit points either way)
+    owner_he = np.full(t1.n_edges, -1)
+    owner_he[t1.he_edge[he]] = he
+    side_k = owner_he[edges] % 4
+    q = quad_of[owner_he[edges] // 4]
+    samples = np.empty((edges.size, m, 3))
+    for k, side in enumerate(_sides(fit)):
+        sel = side_k == k
+        samples[sel] = side[q[sel]]
+    forward = t1.edge_halfedge[edges] == owner_he[edges]
+    samples[~forward] = samples[~forward, ::-1]
+    ends = samples[:, [0, -1]]
+    rhs = samples - basis[None, :, 0, None] * ends[:, None, 0] - basis[None, :, -1, None] * ends[:, None, 1]
+    curves[edges, 0], curves[edges, -1] = ends[:, 0], ends[:, 1]
+    curves[edges, 1:-1] = np.einsum("am,emc->eac", pinv, rhs)
+    poles = np.zeros((fitted.size, n_poles, n_poles, 3))
+    sides = []
+    for k in range(4):
+        h = 4 * fitted + k
+        c = curves[t1.he_edge[h]]
+        rev = t1.edge_halfedge[t1.he_edge[h]] != h
+        c[rev] = c[rev, ::-1]
+        sides.append(c)
+    _set_sides(poles, sides)
+    rest = fit - np.einsum("ia,pabc,jb->pijc", basis, poles, basis)
+    poles[:, 1:-1, 1:-1] = np.einsum("ai,pijc,bj->pabc", pinv, rest, pinv)
+    return poles
+
+
+def _project(poles: np.ndarray, points: np.ndarray, iterations: int = 6) -> np.ndarray:
+    """Distance from every point ``points[p, i, j]`` (the limit at ``(i / (m-1), j / (m-1))`` of patch ``p``)
+    to patch ``p`` (``poles[p]``, clamped uniform knots): Gauss-Newton foot points from those parameters,
+    kept in [0, 1]^2 (a foot point beyond the patch's edge would lie on its neighbour, so clamping can only
+    overestimate)."""
+    n_p, m = points.shape[0], points.shape[1]
+    n = poles.shape[1]
+    x = points.reshape(n_p, m * m, 3)
+    g = np.linspace(0.0, 1.0, m)
+    u = np.broadcast_to(np.repeat(g, m), (n_p, m * m)).copy()
+    v = np.broadcast_to(np.tile(g, m), (n_p, m * m)).copy()
+
+    def basis(t: np.ndarray, order: int) -> np.ndarray:
+        return bspline.derivative_basis_matrix(n, t.ravel(), DEGREE, order).reshape(n_p, m * m, n)
+
+    def surface(bu: np.ndarray, bv: np.ndarray) -> np.ndarray:
+        return np.einsum("pka,pabc,pkb->pkc", bu, poles, bv, optimize=True)
+
+    for _ in range(iterations):
+        bu, bv = basis(u, 0), basis(v, 0)
+        r = x - surface(bu, bv)
+        su, sv = surface(basis(u, 1), bv), surface(bu, basis(v, 1))
+        a, b, c = (su * su).sum(-1), (su * sv).sum(-1), (sv * sv).sum(-1)
+        ru, rv = (su * r).sum(-1), (sv * r).sum(-1)
+        det = a * c - b * b
+        ok = det > 1e-30 * (a * c + 1e-300)
+        det = np.where(ok, det, 1.0)
+        u = np.clip(u + np.where(ok, (c * ru - b * rv) / det, 0.0), 0.0, 1.0)
+        v = np.clip(v + np.where(ok, (a * rv - b * ru) / det, 0.0), 0.0, 1.0)
+    return np.linalg.norm(x - surface(basis(u, 0), basis(v, 0)), axis=-1).reshape(n_p, m, m)
+
+
+def limit_patches(mesh: PolyMesh, tolerance_rel: float = 1e-4, boundary: Boundary = "all",
+                  max_level: int = 4) -> PatchSet:
+    """Bicubic B-spline patches of ``mesh``'s Catmull-Clark limit surface (module docstring).
+
+    ``tolerance_rel`` is relative to the limit surface's bounding-box diagonal; the fitting level rises
+    from 3 to ``max_level`` until every fitted patch is within it. When even ``max_level`` does not reach
+    it, the best patches are returned with ``within_tolerance`` False (callers decide whether to refuse).
+    """
+    if not isinstance(mesh, PolyMesh):
+        raise InputError(f"limit_patches needs a PolyMesh, got {type(mesh).__name__}")
+    if not (isinstance(tolerance_rel, (float, int)) and np.isfinite(tolerance_rel) and tolerance_rel > 0):
+        raise ConfigError(f"the patch tolerance must be a positive number, got {tolerance_rel!r}")
+    if isinstance(max_level, bool) or not isinstance(max_level, (int, np.integer)) or not 3 <= max_level <= 7:
+        raise ConfigError(f"max_level must be a whole number from 3 to 7, got {max_level!r}")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError("the control mesh has non-finite vertex coordinates")
+    regular, bezier = _regular_patches(mesh, boundary)
+    n_quads = len(mesh.corners)
+    fitted = np.setdiff1d(np.arange(n_quads), regular)
+    best = None
+    for level in range(MIN_LEVEL, int(max_level) + 1):
+        check = limit_grids(mesh, level + 1, boundary)
+        if best is None:
+            lo, hi = check.reshape(-1, 3).min(axis=0), check.reshape(-1, 3).max(axis=0)
+            diagonal = float(np.linalg.norm(hi - lo))
+            tolerance = float(tolerance_rel) * diagonal
+        spans = 2 ** (level - 2)
+        poles = _fit(mesh, boundary, check[fitted][:, ::2, ::2], fitted, spans) if fitted.size else None
+        m = check.shape[1]
+        dev = np.empty((n_quads, m, m))
+        if fitted.size:
+            dev[fitted] = _project(poles, check[fitted])
+        if regular.size:
+            b = bspline.uniform_basis(4, m, DEGREE)
+            dev[regular] = np.linalg.norm(np.einsum("ia,pabc,jb->pijc", b, bezier, b) - check[regular], axis=-1)
+        best = (level, spans, poles, dev)
+        if dev.max() <= tolerance or not fitted.size:
+            break
+    level, spans, poles, dev = best
+    knots = bspline.clamped_uniform_knots(spans + DEGREE, DEGREE)
+    out: list[Patch | None] = [None] * n_quads
+    for p, q in enumerate(regular.tolist()):
+        out[q] = Patch(_readonly(bezier[p]), _BEZIER_KNOTS, _BEZIER_KNOTS, exact=True)
+    for p, q in enumerate(fitted.tolist()):
+        out[q] = Patch(_readonly(poles[p]), knots, knots)
+    per_patch = dev.reshape(n_quads, -1).max(axis=1)
+    return PatchSet(out, float(dev.max()), float(dev.mean()), diagonal, tolerance, _readonly(per_patch),
+                    level, spans, bool(mesh.topology.is_closed))
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    a.setflags(write=False)
+    return a
+
+
+_BEZIER_KNOTS.setflags(write=False)

@@ -1,0 +1,130 @@
+"""Surface export to STEP and CadQuery: sewn limit patches, a valid closed solid, stated deviations.
+
+Oracles: OCP's STEP reader, BRepCheck_Analyzer and mass properties, OCCT's point projection
+(ShapeAnalysis_Surface) against exact limit points, and the volume of a dense limit mesh (divergence theorem).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from gsr_cad.cli import formats
+from gsr_cad.errors import ExportError
+from gsr_cad.exporters.cadquery import CadqueryExporter, cadquery_python
+from gsr_cad.exporters.step import StepExporter, read_step_shape
+from gsr_cad.geometry import subdivision
+from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
+from gsr_cad.reconstruct.result import Result
+
+pytest.importorskip("OCP")
+
+
+def surface_result(mesh: PolyMesh, **config) -> Result:
+    return Result(kind="surface", config=config, seed=None, genome=(), metrics={}, history=[], control_mesh=mesh)
+
+
+def prism() -> PolyMesh:
+    a = 2 * np.pi * np.arange(5) / 5
+    v = np.concatenate([np.column_stack([np.cos(a), np.sin(a), np.zeros(5)]),
+                        np.column_stack([np.cos(a), np.sin(a), np.full(5, 1.3)])]) * 40 + [5, -3, 2]
+    faces = [tuple(range(4, -1, -1)), tuple(range(5, 10))] + [(i, (i + 1) % 5, 5 + (i + 1) % 5, 5 + i) for i in range(5)]
+    return PolyMesh.from_faces(v, faces)
+
+
+def open_grid() -> PolyMesh:
+    xy = np.stack(np.meshgrid(np.arange(4), np.arange(3)), -1).reshape(-1, 2).astype(float)
+    v = np.column_stack([xy, 0.4 * np.sin(xy.sum(1))])
+    faces = [(j * 4 + i, j * 4 + i + 1, (j + 1) * 4 + i + 1, (j + 1) * 4 + i) for j in range(2) for i in range(3)]
+    return PolyMesh.from_faces(v, faces)
+
+
+def statuses(checks) -> dict[str, str]:
+    return {c.check: c.status for c in checks}
+
+
+def limit_volume(mesh: PolyMesh, boundary: str = "all") -> float:
+    lim = subdivision.limit_mesh(mesh, 5, boundary)
+    q = lim.vertices[lim.corners.reshape(-1, 4)]
+    tris = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    return float(np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])).sum() / 6)
+
+
+@pytest.mark.parametrize("mesh", [subdivision.refine(unit_cube(), 1), prism(), open_grid()],
+                         ids=["refined cube", "pentagonal prism", "open grid"])
+def test_step_is_a_valid_solid_within_the_stated_deviation(tmp_path, mesh):
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+
+    result = surface_result(mesh)
+    step, sidecar = StepExporter().export(result, tmp_path, "surface")
+    assert step.name == "surface.step" and sidecar.name == "surface.step.json"
+    stated = json.loads(sidecar.read_text())
+    assert stated["max_deviation"] <= stated["tolerance"] <= 1e-4 * stated["diagonal"] * (1 + 1e-12)
+    assert stated["patches"] == len(mesh.corners) and stated["solid"] == mesh.topology.is_closed
+    assert "deviation from the limit max" in step.read_text()[:600]
+    checks = StepExporter().validate(step, result)
+    assert all(c.passed for c in checks), [c for c in checks if not c.passed]
+    got = statuses(checks)
+    assert got["deviation from the limit surface"] == "pass"
+    if mesh.topology.is_closed:
+        assert got["one closed solid"] == "pass"
+        props = GProp_GProps()
+        BRepGProp.VolumeProperties_s(read_step_shape(step), props)
+        # the dense limit mesh's chords cut slightly inside: its volume is a little smaller
+        assert props.Mass() == pytest.approx(limit_volume(mesh), rel=2e-3)
+    else:
+        assert "one closed solid" not in got
+
+
+def _perturb_surface_pole(text: str, delta: float) -> str:
+    """Move an interior pole (row 2, column 2) of the first B-spline surface along x by ``delta``."""
+    body = re.search(r"B_SPLINE_SURFACE_WITH_KNOTS\('[^']*',3,3,\(\s*\(([^)]*)\)\s*,\s*\(([^)]*)\)", text)
+    target = body.group(2).split(",")[1].strip()
+    line = re.search(rf"^{re.escape(target)} = CARTESIAN_POINT\('',\(([^,]+),", text, re.M)
+    return text[:line.start(1)] + repr(float(line.group(1)) + delta) + text[line.end(1):]
+
+
+def test_a_damaged_step_fails_validation(tmp_path):
+    result = surface_result(prism())
+    step, _ = StepExporter().export(result, tmp_path, "prism")
+    step.write_text(_perturb_surface_pole(step.read_text(), 0.5))  # 0.5 mm on a ~100 mm solid
+    got = statuses(StepExporter().validate(step, result))
+    assert got["deviation from the limit surface"] == "FAIL"
+    step.write_text("ISO-10303-21;\nnot a step file\n")
+    assert statuses(StepExporter().validate(step, result)) == {"read": "FAIL"}
+
+
+def test_unreachable_tolerance_and_wrong_results_raise(tmp_path):
+    with pytest.raises(ExportError, match="above the tolerance"):
+        StepExporter().export(surface_result(unit_cube(), patch_tolerance=1e-9, patch_max_level=3), tmp_path, "x")
+    bad = surface_result(unit_cube().with_vertices(np.zeros((8, 3))))
+    with pytest.raises(ExportError):
+        StepExporter().export(bad, tmp_path, "x")
+    assert not list(tmp_path.iterdir())
+
+
+def test_export_all_writes_step_and_its_statement(tmp_path):
+    result = surface_result(unit_cube())
+    result.save(tmp_path)
+    written = formats.export_all(result, tmp_path, ["step"], stem="cube")
+    assert sorted(p.name for p in written) == ["cube.step", "cube.step.json"]
+    rows = formats.validate_all(tmp_path)
+    assert rows and all(c.passed for c in rows), rows
+
+
+@pytest.mark.skipif(cadquery_python() is None, reason="no .venv-cadquery (run scripts/cadquery-venv.sh)")
+def test_cadquery_script_rebuilds_the_solid(tmp_path):
+    result = surface_result(prism())
+    (script,) = CadqueryExporter().export(result, tmp_path, "prism")
+    assert script.name == "prism_cadquery.py"
+    checks = CadqueryExporter().validate(script, result)
+    assert all(c.passed for c in checks), [c for c in checks if not c.passed]
+    assert {"one closed solid", "deviation from the limit surface"} <= set(statuses(checks))
+    text = script.read_text()
+    first = re.search(r"\(\[\[\(([-0-9.e]+),", text)  # the first pole of the first patch
+    script.write_text(text[:first.start(1)] + repr(float(first.group(1)) + 0.5) + text[first.end(1):])
+    assert any(c.status == "FAIL" for c in CadqueryExporter().validate(script, result))
