@@ -1,5 +1,7 @@
 """Blender replay scripts: a genome becomes a readable Python script that rebuilds the control geometry
-with Blender's own operators (bmesh), then adds a Subdivision Surface modifier.
+with Blender's own operators (bmesh), then adds a Subdivision Surface modifier; for curves, the control
+polygon after every op (hidden objects) and the NURBS curve. :class:`BlenderExporter` (format "blender")
+writes and validates both; :func:`surface_model` is the replayed surface every surface exporter shares.
 
 The script is self-contained (Blender 3.4, no gsr_cad needed). Run from Blender's Text Editor it just
 builds the object; run headless as
@@ -19,18 +21,32 @@ which keeps the script editable: change a number and run it again).
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+from scipy.spatial import cKDTree
+
+from gsr_cad import genome as genome_mod
 from gsr_cad.atomic import write_text
-from gsr_cad.errors import ConfigError, ExportError, OpError
+from gsr_cad.errors import ConfigError, ExportError, InputError, OpError
 from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.subdivision import limit_mesh
 from gsr_cad.ops.base import Op
 from gsr_cad.ops.mesh import OPS_BY_LETTER, Scale
 from gsr_cad.ops.mesh_kernel import bbox_centre
 
+from . import hosts
+from .base import (EXACT_TOL, SAMPLE_TOL, Check, CurveSpline, Exporter, curve_history, curve_spline, expect_equal,
+                   failed, measured, point_deviation, scratch_dir, skipped)
+
 MAX_LEVELS = 6
+_BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
 
 # --- Blender-side code for surfaces (kept as source text, emitted into the script) ---------------------
 
@@ -290,7 +306,7 @@ def make_object(bm):
     mod.levels = LEVELS
     mod.render_levels = LEVELS
     mod.use_limit_surface = USE_LIMIT_SURFACE
-    mod.boundary_smooth = "ALL"
+    mod.boundary_smooth = BOUNDARY
     bpy.context.view_layer.objects.active = obj
     obj.select_set(True)
     return obj
@@ -348,7 +364,7 @@ def _mesh_call(op: Op, state: PolyMesh) -> str:
 
 
 def _mesh_script(genome: Sequence[Op], template: PolyMesh, levels: int, use_limit_surface: bool, title: str,
-                 file_name: str) -> str:
+                 file_name: str, boundary: str = "all") -> str:
     known = {cls.name for cls in OPS_BY_LETTER.values()}
     for op in genome:
         if op.name not in known:
@@ -392,6 +408,7 @@ from mathutils import Matrix, Vector
 NAME = {name!r}
 LEVELS = {levels}
 USE_LIMIT_SURFACE = {bool(use_limit_surface)}
+BOUNDARY = {_BOUNDARY[boundary]!r}
 
 TEMPLATE_VERTICES = [
 {verts}]
@@ -403,14 +420,378 @@ TEMPLATE_FACES = [
 
 
 def write_blender_script(genome: Sequence[Op], template: PolyMesh, path: str | os.PathLike[str], levels: int = 2,
-                         use_limit_surface: bool = True, title: str = "") -> Path:
+                         use_limit_surface: bool = True, title: str = "", boundary: str = "all") -> Path:
     """Write a Blender 3.4 script that replays ``genome`` on ``template`` and adds a Subdivision Surface
-    modifier (``levels`` for viewport and render, ``use_limit_surface`` set explicitly); atomically."""
+    modifier (``levels`` for viewport and render, ``use_limit_surface`` set explicitly, ``boundary``
+    "all" or "corners" as gsr_cad names Blender's boundary smoothing); atomically."""
+    if boundary not in _BOUNDARY:
+        raise ConfigError(f"boundary must be one of {', '.join(_BOUNDARY)}, got {boundary!r}")
     if isinstance(levels, bool) or not isinstance(levels, int) or not 0 <= levels <= MAX_LEVELS:
         raise ConfigError(f"subdivision levels must be an integer in [0, {MAX_LEVELS}], got {levels!r}")
     if not isinstance(template, PolyMesh):
         raise ExportError(f"no Blender writer for a {type(template).__name__} template")
     if title and not all(ch.isalnum() or ch in " -_." for ch in title):
         raise ConfigError(f"the title may hold letters, digits, spaces, '-', '_' and '.', got {title!r}")
-    text = _mesh_script(tuple(genome), template, levels, use_limit_surface, title, Path(path).name)
+    text = _mesh_script(tuple(genome), template, levels, use_limit_surface, title, Path(path).name, boundary)
     return write_text(path, text)
+
+
+# --- Curves ----------------------------------------------------------------------------------------------
+
+_CURVE_SCRIPT = '''"""{title}
+
+The modelling history is replayed below, one commented block per op, on the template polygon: after every
+step a hidden poly-curve object named after it (in the collection "{name} history"; the last step stays
+visible as the control polygon) shows the control polygon at that point. The result is "{name}", a NURBS
+curve with endpoint knots and order {order} (degree {degree}): exactly the clamped uniform {scheme} B-spline.
+
+Run it in Blender's Text Editor, or headless:
+    blender -b --factory-startup --python {filename} -- --json what_blender_built.json
+"""
+
+import json
+import sys
+
+import bpy
+
+NAME = {name!r}
+ORDER = {order}
+RESOLUTION = {resolution}  # evaluated points per control-polygon segment
+TEMPLATE = [
+{template}]
+
+
+def add_point(points, index, position):
+    """Insert a control point so that it becomes points[index]."""
+    points.insert(index, tuple(position))
+
+
+def move_point(points, index, delta):
+    """Translate points[index] by delta."""
+    x, y = points[index]
+    points[index] = (x + delta[0], y + delta[1])
+
+
+def curve_object(name, points, kind, collection):
+    """A curve object through `points` (z = 0): kind "POLY" (control polygon) or "NURBS"."""
+    data = bpy.data.curves.new(name, "CURVE")
+    data.dimensions = "3D"
+    spline = data.splines.new(kind)
+    spline.points.add(len(points) - 1)
+    for p, (x, y) in zip(spline.points, points):
+        p.co = (x, y, 0.0, 1.0)
+    if kind == "NURBS":
+        spline.order_u = ORDER
+        spline.use_endpoint_u = True
+        spline.resolution_u = RESOLUTION
+    obj = bpy.data.objects.new(name, data)
+    collection.objects.link(obj)
+    return obj
+
+
+def build():
+    """The history objects and the curve; returns (curve object, history objects)."""
+    scene = bpy.context.scene
+    history = bpy.data.collections.new(NAME + " history")
+    scene.collection.children.link(history)
+    steps = []
+    points = [tuple(p) for p in TEMPLATE]
+
+    def step(label):
+        steps.append(curve_object(label, points, "POLY", history))
+
+    step({first_label!r})
+{ops}
+    for obj in steps[:-1]:
+        obj.hide_set(True)
+        obj.hide_render = True
+    curve = curve_object(NAME, points, "NURBS", scene.collection)
+    bpy.context.view_layer.objects.active = curve
+    curve.select_set(True)
+    return curve, steps
+
+
+def describe(curve, steps):
+    """What Blender built, as JSON-ready data (control points, NURBS settings, evaluated points, history)."""
+    spline = curve.data.splines[0]
+    evaluated = curve.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    samples = [list(v.co) for v in mesh.vertices]
+    evaluated.to_mesh_clear()
+    return {{"name": curve.name, "type": spline.type, "order": spline.order_u,
+             "endpoint": bool(spline.use_endpoint_u), "cyclic": bool(spline.use_cyclic_u),
+             "resolution": spline.resolution_u, "poles": [list(p.co) for p in spline.points],
+             "samples": samples,
+             "history": [{{"name": o.name, "hidden": bool(o.hide_get()),
+                          "points": [list(p.co) for p in o.data.splines[0].points]}} for o in steps]}}
+
+
+def main(argv):
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="blender -b --python this.py --")
+    parser.add_argument("--json", help="write what Blender built to this JSON file")
+    args = parser.parse_args(argv[argv.index("--") + 1:] if "--" in argv else [])
+    curve, steps = build()
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            json.dump(describe(curve, steps), fh)
+    return curve
+
+
+if __name__ == "__main__":
+    main(sys.argv)
+'''
+
+CURVE_RESOLUTION = 12
+BLENDER_NAME_LIMIT = 63  # bytes in an ID name
+
+
+def _curve_call(op: dict) -> str:
+    if op["op"] == "add_point":
+        return f"add_point(points, {int(op['index'])}, {_vec(op['position'])})"
+    if op["op"] == "move_point":
+        return f"move_point(points, {int(op['index'])}, {_vec(op['delta'])})"
+    raise ExportError(f"the Blender curve writer knows add_point and move_point, got {op['op']!r}")
+
+
+def _blender_name(label: str) -> str:
+    return label.encode("utf-8")[:BLENDER_NAME_LIMIT].decode("utf-8", "ignore")
+
+
+def curve_script(result: Any, file_name: str, title: str = "") -> str:
+    """The Blender script text for a curve result (history replay + NURBS curve)."""
+    spline = curve_spline(result)
+    history = curve_history(result)
+    blocks = [f"\n    # {h.label}\n    {_curve_call(h.op)}\n    step({_blender_name(h.label)!r})"
+              for h in history[1:]]
+    scheme = str(result.config.get("scheme", "bspline"))
+    name = title or "gsr_curve"
+    return _CURVE_SCRIPT.format(
+        title=f"{file_name}: a gsr_cad {scheme} curve with {len(result.genome)} modelling ops (Blender 3.4)",
+        name=name, order=spline.degree + 1, degree=spline.degree, scheme=scheme, filename=file_name,
+        resolution=CURVE_RESOLUTION, template="".join(f"    {_vec(p)},\n" for p in history[0].points.tolist()),
+        first_label=_blender_name(history[0].label), ops="".join(blocks))
+
+
+# --- Surfaces: what every surface exporter shares -------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class SurfaceModel:
+    """A surface result as the exporters see it: the template, the control mesh after every op (labelled
+    ``"03 extrude face 5 by 0.42"``), the subdivision settings and the limit mesh."""
+
+    labels: tuple[str, ...]
+    ops: tuple[dict[str, Any] | None, ...]
+    states: tuple[PolyMesh, ...]
+    levels: int
+    boundary: str
+    limit: PolyMesh
+
+    @property
+    def control(self) -> PolyMesh:
+        return self.states[-1]
+
+    @property
+    def template(self) -> PolyMesh:
+        return self.states[0]
+
+    @property
+    def diagonal(self) -> float:
+        """Bounding-box diagonal of the limit mesh: the unit of every surface tolerance."""
+        d = self.limit.diagonal
+        return d if d > 0 else 1.0
+
+
+def surface_model(result: Any) -> SurfaceModel:
+    """Replay a surface result's genome on its stored template; ExportError when the result has ops but
+    no template, the genome does not replay, or the replay does not rebuild ``control_mesh`` exactly."""
+    from gsr_cad.reconstruct.surface import template_from_config
+
+    if result.kind != "surface" or result.control_mesh is None:
+        raise ExportError(f"expected a surface result, got a {result.kind} result")
+    cfg = result.config or {}
+    try:
+        # without ops the control mesh is its own template
+        template = result.control_mesh if not result.genome and "template" not in cfg else template_from_config(cfg)
+        states = genome_mod.replay_states(template, result.genome)
+    except (OpError, InputError, TypeError, ValueError) as exc:
+        raise ExportError(f"the genome does not replay on the stored template: {str(exc).splitlines()[0]}") from None
+    final, want = states[-1], result.control_mesh
+    if final.faces != want.faces or not np.array_equal(final.vertices, want.vertices):
+        raise ExportError("replaying the genome does not rebuild control_mesh (a hand-edited result.json?)")
+    levels, boundary = cfg.get("levels", 2), cfg.get("boundary", "all")
+    if isinstance(levels, bool) or not isinstance(levels, int) or not 1 <= levels <= MAX_LEVELS:
+        raise ExportError(f"config levels must be an integer in [1, {MAX_LEVELS}], got {levels!r}")
+    if boundary not in _BOUNDARY:
+        raise ExportError(f"config boundary must be one of {', '.join(_BOUNDARY)}, got {boundary!r}")
+    width = max(2, len(str(len(result.genome))))
+    labels = [f"{0:0{width}d} template"] + [f"{i + 1:0{width}d} {op.describe()}" for i, op in enumerate(result.genome)]
+    ops = (None, *(op.to_json() for op in result.genome))
+    return SurfaceModel(tuple(labels), ops, tuple(states), levels, boundary, limit_mesh(final, levels, boundary))
+
+
+def same_mesh(ours: PolyMesh, theirs_vertices: np.ndarray, theirs_faces: Sequence[Sequence[int]]) -> tuple[float, str]:
+    """``(largest vertex distance, problem)`` between our mesh and one read back in any element order:
+    every vertex is matched to its nearest, the match must be one-to-one and map faces onto faces (as
+    oriented cycles). ``problem`` is "" when the structure agrees (the distance is then meaningful)."""
+    tv = np.asarray(theirs_vertices, dtype=float).reshape(-1, 3)
+    if len(tv) != ours.n_vertices or len(theirs_faces) != ours.n_faces:
+        return math.inf, f"{len(tv)} vertices and {len(theirs_faces)} faces, expected {ours.n_vertices} and {ours.n_faces}"
+    dist, match = cKDTree(tv).query(ours.vertices)
+    if len(np.unique(match)) != ours.n_vertices:
+        return float(dist.max()), "two vertices match the same vertex"
+    mapped = sorted(_canonical([int(match[i]) for i in f]) for f in ours.faces)
+    if mapped != sorted(_canonical([int(i) for i in f]) for f in theirs_faces):
+        return float(dist.max()), "the faces differ"
+    return float(dist.max()), ""
+
+
+def triangle_faces(mesh: PolyMesh) -> list[tuple[int, int, int]]:
+    """Fan triangles of every face, counter-clockwise seen from outside like the faces."""
+    return [(f[0], f[i], f[i + 1]) for f in mesh.faces for i in range(1, len(f) - 1)]
+
+
+def _canonical(cycle: Sequence[int]) -> tuple[int, ...]:
+    i = int(np.argmin(cycle))
+    return tuple(cycle[i:]) + tuple(cycle[:i])
+
+
+def _read_obj(path: Path) -> tuple[np.ndarray, list[list[int]]]:
+    verts, faces = [], []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("v "):
+            verts.append([float(x) for x in line.split()[1:4]])
+        elif line.startswith("f "):
+            faces.append([int(x.split("/")[0]) - 1 for x in line.split()[1:]])
+    return np.array(verts, dtype=float).reshape(-1, 3), faces
+
+
+# --- The exporter ----------------------------------------------------------------------------------------
+
+class BlenderExporter(Exporter):
+    """``*_blender.py``: a Blender 3.4 script that replays the modelling history with Blender's own tools.
+
+    Surfaces: bmesh ops and a Subdivision Surface modifier on the limit surface (:func:`write_blender_script`).
+    Curves: the control polygon after every op as hidden objects and the NURBS curve (endpoint knots).
+    Validation runs the script in background Blender and compares what it built with our geometry: the
+    control mesh (gsr_cad's order, within :data:`CONTROL_TOL` of the diagonal; Blender stores single
+    precision) and the modifier's output (within :data:`EVALUATED_TOL`), or the curve's poles, NURBS
+    settings, history polygons and Blender's own evaluated points.
+    """
+
+    name = "blender"
+    kinds = ("curve", "surface")
+    suffixes = ("_blender.py",)
+    host = "blender"
+
+    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        model = surface_model(result)
+        return [write_blender_script(result.genome, model.template, out_dir / self.filename(stem),
+                                     levels=model.levels, use_limit_surface=True, title=_title(stem),
+                                     boundary=model.boundary)]
+
+    def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        filename = self.filename(stem)
+        return [write_text(out_dir / filename, curve_script(result, filename, _title(stem)))]
+
+    def _run(self, path: Path, args: Sequence[str]) -> Check | None:
+        try:
+            hosts.run_blender(path, args, timeout=300)
+        except ExportError as exc:
+            return failed(path, self.host, "run script", str(exc))
+        return None
+
+    def validate_surface(self, path: Path, result: Any) -> list[Check]:
+        if hosts.find_host("blender") is None:
+            return [skipped(path, self.host, "run script", "Blender is not installed (apt-get install blender)")]
+        try:
+            model = surface_model(result)
+        except ExportError as exc:
+            return [failed(path, self.host, "history", str(exc))]
+        with scratch_dir() as tmp:
+            control, evaluated = tmp / "control.obj", tmp / "evaluated.obj"
+            crash = self._run(path, ["--control", control, "--evaluated", evaluated])
+            if crash:
+                return [crash]
+            try:
+                cv, cf = _read_obj(control)
+                ev, ef = _read_obj(evaluated)
+            except (OSError, ValueError) as exc:
+                return [failed(path, self.host, "read output", f"the script wrote no usable OBJ: {exc}")]
+        ours, diag = model.control, model.diagonal
+        checks = [expect_equal(path, self.host, "control faces", [tuple(f) for f in cf], ours.faces)]
+        checks.append(measured(path, self.host, "control vertices",
+                               point_deviation(cv, ours.vertices) / diag, CONTROL_TOL,
+                               f"relative to the diagonal; tolerance {CONTROL_TOL:.3g}"))
+        dev, problem = same_mesh(model.limit, ev, ef)
+        label = f"modifier (levels {model.levels}) vs our limit mesh"
+        if problem:
+            checks.append(failed(path, self.host, label, problem))
+        else:
+            checks.append(measured(path, self.host, label, dev / diag, EVALUATED_TOL,
+                                   f"{model.limit.n_vertices} vertices, relative to the diagonal; "
+                                   f"tolerance {EVALUATED_TOL:.3g}"))
+        return checks
+
+    def validate_curve(self, path: Path, result: Any) -> list[Check]:
+        if hosts.find_host("blender") is None:
+            return [skipped(path, self.host, "run script", "Blender is not installed (apt-get install blender)")]
+        spline = curve_spline(result)
+        try:
+            history = curve_history(result)
+        except ExportError as exc:
+            return [failed(path, self.host, "history", str(exc))]
+        with scratch_dir() as tmp:
+            out = tmp / "built.json"
+            crash = self._run(path, ["--json", out])
+            if crash:
+                return [crash]
+            try:
+                data = json.loads(out.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:
+                return [failed(path, self.host, "read output", f"the script wrote no usable JSON: {exc}")]
+        return self._compare_curve(path, data, spline, history)
+
+    def _compare_curve(self, path: Path, data: dict, spline: CurveSpline, history: list) -> list[Check]:
+        host, diag = self.host, spline.diagonal
+        tol = CONTROL_TOL * max(diag, spline.scale)
+        poles = np.asarray(data["poles"], dtype=float)
+        checks = [
+            expect_equal(path, host, "NURBS settings", (data["type"], data["order"], data["endpoint"], data["cyclic"]),
+                         ("NURBS", spline.degree + 1, True, False)),
+            measured(path, host, "poles", point_deviation(poles[:, :3] if poles.ndim == 2 else poles,
+                                                          np.column_stack([spline.poles, np.zeros(len(spline.poles))])),
+                     tol, f"tolerance {tol:.3g} (single precision)"),
+            measured(path, host, "weights", float(np.abs(poles[:, 3] - 1.0).max()) if poles.ndim == 2 else math.inf,
+                     EXACT_TOL),
+        ]
+        steps = data.get("history") or []
+        checks += [
+            expect_equal(path, host, "one object per op", len(steps), len(history)),
+            expect_equal(path, host, "op labels", [s["name"] for s in steps],
+                         [_blender_name(h.label) for h in history]),
+            expect_equal(path, host, "only the last step visible", [not s["hidden"] for s in steps],
+                         [i == len(history) - 1 for i in range(len(history))]),
+        ]
+        if len(steps) == len(history):
+            dev = max(point_deviation(np.asarray(s["points"], dtype=float)[:, :2], h.points) for s, h in zip(steps, history))
+            checks.append(measured(path, host, "history polygons", dev, tol, f"tolerance {tol:.3g}"))
+        samples = np.asarray(data["samples"], dtype=float)
+        params = np.linspace(0.0, 1.0, len(samples))
+        want = np.column_stack([spline.points(params), np.zeros(len(params))])
+        stol = SAMPLE_TOL * max(diag, spline.scale)
+        checks.append(measured(path, host, f"{len(samples)} evaluated points", point_deviation(samples, want), stol,
+                               f"Blender's own NURBS evaluation; tolerance {stol:.3g}"))
+        return checks
+
+
+CONTROL_TOL = 1e-6
+"""Control geometry read back from Blender (single precision), relative to the diagonal."""
+EVALUATED_TOL = 1e-5
+"""Blender's Subdivision Surface output against our limit mesh, relative to the diagonal."""
+
+
+def _title(stem: str) -> str:
+    """A Blender object name from a file stem (letters, digits, ' -_.' only)."""
+    return "".join(ch if ch.isalnum() or ch in " -_." else "_" for ch in stem) or "gsr"

@@ -15,18 +15,22 @@ with ours.
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from gsr_cad.atomic import write_text
 from gsr_cad.errors import ExportError
+from gsr_cad.geometry.polymesh import PolyMesh
 
 from . import hosts
-from .base import (EXACT_TOL, Check, CurveSpline, Exporter, HistoryStep, curve_checks, curve_history, curve_spline,
-                   expect_equal, failed, measured, num, point_deviation, scratch_dir, skipped)
+from .base import (EXACT_TOL, SAMPLE_TOL, Check, CurveSpline, Exporter, HistoryStep, curve_checks, curve_history,
+                   curve_spline, expect_equal, failed, measured, num, point_deviation, scratch_dir, skipped)
+from .blender import SurfaceModel, same_mesh, surface_model, triangle_faces
 
 SAMPLES_PER_SPAN = 16
 
@@ -183,7 +187,7 @@ class FreecadMacroExporter(Exporter):
     """``*.FCMacro``: self-contained FreeCAD macro with the op history and the exact B-spline."""
 
     name = "fcmacro"
-    kinds = ("curve",)
+    kinds = ("curve", "surface")
     suffixes = (".FCMacro",)
     host = "freecad"
 
@@ -199,6 +203,12 @@ class FreecadMacroExporter(Exporter):
             poles=_pairs(spline.poles), knots=", ".join(num(k) for k in spline.breakpoints),
             mults=", ".join(str(int(m)) for m in spline.multiplicities))
         return [write_text(out_dir / filename, text)]
+
+    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        return _export_surface(self, result, out_dir, stem)
+
+    def validate_surface(self, path: Path, result: Any) -> list[Check]:
+        return _validate_surface(self, path, result)
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
         if hosts.find_host("freecad") is None:
@@ -255,3 +265,315 @@ class FreecadMacroExporter(Exporter):
         return checks + curve_checks(path, host, spline, params, degree=curve["degree"], rational=curve["rational"],
                                      poles=curve["poles"], knots=np.repeat(curve["knots"], curve["mults"]),
                                      samples=curve["samples"], param_range=curve["range"])
+
+
+# --- Surfaces ---------------------------------------------------------------------------------------------
+
+_SURFACE_MACRO = '''"""{title}
+
+Rebuilt by gsr_cad from its modelling history. The group "History" holds one object per step, named after
+it (the template, then the control mesh after each op, as a compound of its face polygons; all hidden but
+the last). "LimitSurface" is the Catmull-Clark limit surface built by FreeCAD's Part module from {n_patches}
+B-spline patches (the same patches as gsr_cad's STEP export; fitted within {patch_dev:.3g} of the exact limit
+surface, exact on regular faces), sewn into a shell and, when closed, a solid. "LimitMesh" is the level-{levels}
+limit mesh (Mesh module).
+
+Run: freecadcmd {filename}          (GSR_FCSTD=/path/to/file.FCStd to save the document)
+ or: FreeCAD > Macro > Macros... > Execute, or build("/path/to/file.FCStd") from FreeCAD's Python console.
+"""
+import json
+import os
+import sys
+
+import FreeCAD as App
+import Mesh
+import Part
+
+DOC_NAME = {doc_name!r}
+SEW_TOLERANCE = {sew_tol!r}
+# (label, op as JSON, control-mesh vertices, faces) after each op
+STEPS = [
+{steps}
+]
+LIMIT_POINTS = [{limit_points}]
+LIMIT_TRIANGLES = [{limit_triangles}]
+# (poles[u][v] as (x, y, z), u knots, u multiplicities, v knots, v multiplicities, u degree, v degree)
+PATCHES = [
+{patches}
+]
+
+
+def cage_shape(vertices, faces):
+    """The control mesh as a compound of closed face polygons."""
+    pts = [App.Vector(*p) for p in vertices]
+    return Part.Compound([Part.makePolygon([pts[i] for i in face] + [pts[face[0]]]) for face in faces])
+
+
+def limit_surface():
+    """The B-spline patches sewn into a shell (a solid when the shell is closed)."""
+    faces = []
+    for poles, uknots, umults, vknots, vmults, udegree, vdegree in PATCHES:
+        surface = Part.BSplineSurface()
+        surface.buildFromPolesMultsKnots([[App.Vector(*p) for p in row] for row in poles], umults, vmults,
+                                         uknots, vknots, False, False, udegree, vdegree)
+        faces.append(surface.toShape())
+    sewn = Part.Compound(faces)
+    sewn.sewShape(SEW_TOLERANCE)
+    shell = Part.Shell(sewn.Faces)
+    if shell.isClosed():
+        solid = Part.Solid(shell)
+        if solid.Volume < 0:
+            solid.reverse()
+        return solid
+    return shell
+
+
+def build(fcstd_path=None):
+    """Make the document (history, limit surface, limit mesh); save it to fcstd_path when one is given."""
+    doc = App.newDocument(DOC_NAME)
+    history = doc.addObject("App::DocumentObjectGroup", "History")
+    steps = []
+    for number, (label, op, vertices, faces) in enumerate(STEPS):
+        step = doc.addObject("Part::Feature", "Step%03d" % number)
+        step.Label = label
+        step.addProperty("App::PropertyString", "Op", "gsr_cad", "the modelling op of this step (JSON)")
+        step.Op = op
+        step.Shape = cage_shape(vertices, faces)
+        history.addObject(step)
+        steps.append(step)
+    surface = doc.addObject("Part::Feature", "LimitSurface")
+    surface.Label = "limit surface (%d B-spline patches)" % len(PATCHES)
+    surface.Shape = limit_surface()
+    mesh = doc.addObject("Mesh::Feature", "LimitMesh")
+    mesh.Label = "limit mesh (%d triangles)" % len(LIMIT_TRIANGLES)
+    mesh.Mesh = Mesh.Mesh(([App.Vector(*p) for p in LIMIT_POINTS], LIMIT_TRIANGLES))
+    doc.recompute()
+    for step in steps[:-1]:
+        step.Visibility = False
+    mesh.Visibility = False
+    if App.GuiUp:
+        import FreeCADGui
+
+        FreeCADGui.SendMsgToActiveView("ViewFit")
+    if fcstd_path:
+        doc.saveAs(str(fcstd_path))
+    return doc
+
+
+def summary(doc):
+    """What was built, as a JSON-ready dict."""
+    shape = doc.getObject("LimitSurface").Shape
+    return {{"document": doc.Name, "file": doc.FileName or None, "steps": len(STEPS),
+            "labels": [label for label, _, _, _ in STEPS], "patches": len(PATCHES), "shape": shape.ShapeType,
+            "valid": shape.isValid(), "volume": shape.Volume if shape.ShapeType == "Solid" else None,
+            "area": shape.Area}}
+
+
+def _path_from_environment():
+    args = [a for a in os.environ.get("GSR_ARGS", "").split(os.pathsep) if a]
+    return args[0] if args else os.environ.get("GSR_FCSTD")
+
+
+try:
+    print("\\n" + json.dumps(summary(build(_path_from_environment()))))
+except Exception as exc:
+    if App.GuiUp:
+        raise
+    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
+    raise SystemExit(1)
+'''
+
+_SURFACE_READER = '''import json
+import os
+import sys
+
+import FreeCAD as App
+
+GRID = {grid}
+try:
+    source, out = os.environ["GSR_ARGS"].split(os.pathsep)[:2]
+    doc = App.openDocument(source)
+    history = doc.getObject("History")
+    steps = [{{"label": o.Label, "visible": bool(o.Visibility), "op": getattr(o, "Op", None),
+               "wires": [[[v.X, v.Y, v.Z] for v in w.OrderedVertexes] for w in o.Shape.Wires]}}
+             for o in (history.Group if history else [])]
+    data = {{"steps": steps, "surface": None, "mesh": None}}
+    feature = doc.getObject("LimitSurface")
+    if feature is not None:
+        shape = feature.Shape
+        faces = []
+        for face in shape.Faces:
+            s = face.Surface
+            if s.TypeId != "Part::GeomBSplineSurface":
+                faces.append({{"type": s.TypeId}})
+                continue
+            faces.append({{"type": s.TypeId, "degrees": [s.UDegree, s.VDegree], "rational": bool(s.isURational() or s.isVRational()),
+                          "poles": [[[p.x, p.y, p.z] for p in row] for row in s.getPoles()],
+                          "uknots": s.getUKnots(), "umults": s.getUMultiplicities(),
+                          "vknots": s.getVKnots(), "vmults": s.getVMultiplicities(),
+                          "range": list(face.ParameterRange),
+                          "samples": [[[p.x, p.y, p.z] for p in (s.value(u, v) for v in GRID)] for u in GRID]}})
+        data["surface"] = {{"type": shape.ShapeType, "valid": shape.isValid(), "closed": shape.isClosed(),
+                           "shells": len(shape.Shells), "volume": shape.Volume, "faces": faces}}
+    mesh = doc.getObject("LimitMesh")
+    if mesh is not None:
+        points, facets = mesh.Mesh.Topology
+        data["mesh"] = {{"points": [[p.x, p.y, p.z] for p in points], "facets": [list(f) for f in facets],
+                        "visible": bool(mesh.Visibility)}}
+    with open(out, "w") as fh:
+        json.dump(data, fh)
+except Exception as exc:
+    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
+    raise SystemExit(1)
+'''
+
+PATCH_GRID = (0.0, 0.25, 0.5, 0.75, 1.0)
+MESH_TOL = 1e-6
+"""FreeCAD's Mesh module stores single precision: the limit mesh comes back within this much of the diagonal."""
+
+
+def _rows3(points: np.ndarray) -> str:
+    return ", ".join(f"({num(x)}, {num(y)}, {num(z)})" for x, y, z in points)
+
+
+def _patch_text(patch: Any) -> str:
+    ku, mu = patch.breakpoints_u
+    kv, mv = patch.breakpoints_v
+    poles = ", ".join(f"[{_rows3(row)}]" for row in patch.poles)
+    return (f"    ([{poles}], [{', '.join(num(k) for k in ku)}], {[int(m) for m in mu]}, "
+            f"[{', '.join(num(k) for k in kv)}], {[int(m) for m in mv]}, {patch.degree_u}, {patch.degree_v}),")
+
+
+def surface_patches(model: SurfaceModel) -> Any:
+    """The limit surface as B-spline patches (the STEP export's), for the control mesh of ``model``."""
+    from gsr_cad.geometry.patches import limit_patches
+
+    return limit_patches(model.control, boundary=model.boundary)
+
+
+def _check_surface(path: Path, host: str, data: dict | None, patch_set: Any, model: SurfaceModel) -> list[Check]:
+    if not data:
+        return [failed(path, host, "limit surface", "no object 'LimitSurface'")]
+    diag = model.diagonal
+    exact = EXACT_TOL * max(diag, float(np.abs(model.limit.vertices).max()))
+    ours = patch_set.patches
+    checks = [
+        expect_equal(path, host, "limit surface: valid closed solid" if patch_set.closed else "limit surface: valid shell",
+                     (data["type"], data["valid"], data["shells"]), ("Solid" if patch_set.closed else "Shell", True, 1)),
+        expect_equal(path, host, "limit surface: one B-spline face per patch",
+                     [f["type"] for f in data["faces"]], ["Part::GeomBSplineSurface"] * len(ours)),
+    ]
+    if patch_set.closed:
+        checks.append(expect_equal(path, host, "limit surface: volume positive", data["volume"] > 0, True))
+    faces = [f for f in data["faces"] if "poles" in f]
+    if len(faces) != len(ours):
+        return checks
+    grid = np.asarray(PATCH_GRID)
+    want = np.array([p.evaluate(grid, grid) for p in ours])
+    got = np.array([f["samples"] for f in faces], dtype=float)
+    # sewing may reorder faces: match them by their centre samples
+    centre = len(grid) // 2
+    _, order = cKDTree(got[:, centre, centre]).query(want[:, centre, centre])
+    if len(np.unique(order)) != len(ours):
+        return checks + [failed(path, host, "limit surface: patches", "the faces do not match our patches one to one")]
+    matched = [faces[i] for i in order]
+    pole_dev, knot_dev, structure = 0.0, 0.0, []
+    for f, p in zip(matched, ours):
+        structure.append((tuple(f["degrees"]), f["rational"]) == ((p.degree_u, p.degree_v), False))
+        pole_dev = max(pole_dev, point_deviation(np.asarray(f["poles"], dtype=float), p.poles))
+        knot_dev = max(knot_dev, point_deviation(np.repeat(f["uknots"], f["umults"]), p.knots_u),
+                       point_deviation(np.repeat(f["vknots"], f["vmults"]), p.knots_v),
+                       point_deviation(np.asarray(f["range"], dtype=float), np.array([0.0, 1.0, 0.0, 1.0])))
+    return checks + [
+        expect_equal(path, host, "limit surface: degrees, non-rational", all(structure), True),
+        measured(path, host, "limit surface: poles", pole_dev, exact, f"{len(ours)} patches; tolerance {exact:.3g}"),
+        measured(path, host, "limit surface: knots and parameter ranges", knot_dev, EXACT_TOL),
+        measured(path, host, f"limit surface: FreeCAD's {got.shape[1] ** 2} samples per patch",
+                 point_deviation(got[order], want), SAMPLE_TOL * diag,
+                 f"against our patches (within {patch_set.max_deviation / diag:.2g} of the exact limit surface, "
+                 f"relative to the diagonal)"),
+    ]
+
+
+def _check_mesh(path: Path, host: str, data: dict | None, model: SurfaceModel) -> list[Check]:
+    if not data:
+        return [failed(path, host, "limit mesh", "no object 'LimitMesh'")]
+    tri = PolyMesh.from_faces(model.limit.vertices, triangle_faces(model.limit))
+    dev, problem = same_mesh(tri, np.asarray(data["points"], dtype=float), data["facets"])
+    label = f"limit mesh (level {model.levels})"
+    if problem:
+        return [failed(path, host, label, problem)]
+    return [measured(path, host, label, dev / model.diagonal, MESH_TOL,
+                     f"{tri.n_vertices} vertices, {tri.n_faces} triangles, relative to the diagonal")]
+
+
+def _check_history(path: Path, host: str, steps: list[dict], model: SurfaceModel) -> list[Check]:
+    n = len(model.states)
+    checks = [
+        expect_equal(path, host, "one object per op", len(steps), n),
+        expect_equal(path, host, "op labels", [s["label"] for s in steps], list(model.labels)),
+        expect_equal(path, host, "op records", [s["op"] for s in steps],
+                     [json.dumps(op) if op is not None else "" for op in model.ops]),
+        expect_equal(path, host, "only the last step visible", [s["visible"] for s in steps],
+                     [i == n - 1 for i in range(n)]),
+    ]
+    if len(steps) != n:
+        return checks
+    dev = 0.0
+    for s, state in zip(steps, model.states):
+        wires = s["wires"]
+        if len(wires) != state.n_faces:
+            dev = math.inf
+            break
+        for wire, face in zip(wires, state.faces):
+            dev = max(dev, point_deviation(np.asarray(wire, dtype=float), state.vertices[list(face)]))
+    scale = max(1.0, float(max(np.abs(st.vertices).max() for st in model.states)))
+    checks.append(measured(path, host, "history control meshes", dev, EXACT_TOL * scale,
+                           "every face polygon of every step"))
+    return checks
+
+
+def _export_surface(exporter: FreecadMacroExporter, result: Any, out_dir: Path, stem: str) -> list[Path]:
+    model = surface_model(result)
+    patch_set = surface_patches(model)
+    filename = exporter.filename(stem)
+    steps = ",\n".join(
+        f"    ({label!r}, {json.dumps(op) if op is not None else ''!r}, [{_rows3(state.vertices)}], "
+        f"{[list(f) for f in state.faces]!r})" for label, op, state in zip(model.labels, model.ops, model.states))
+    sew_tol = max(2.0 * patch_set.max_deviation, 1e-7 * model.diagonal)
+    text = _SURFACE_MACRO.format(
+        title=f"{filename}: a gsr_cad Catmull-Clark surface with {len(result.genome)} modelling ops",
+        n_patches=len(patch_set.patches), patch_dev=patch_set.max_deviation, levels=model.levels, filename=filename,
+        doc_name=_doc_name(stem), sew_tol=float(sew_tol), steps=steps, limit_points=_rows3(model.limit.vertices),
+        limit_triangles=", ".join(f"({a}, {b}, {c})" for a, b, c in triangle_faces(model.limit)),
+        patches="\n".join(_patch_text(p) for p in patch_set.patches))
+    return [write_text(out_dir / filename, text)]
+
+
+def _validate_surface(exporter: FreecadMacroExporter, path: Path, result: Any) -> list[Check]:
+    host = exporter.host
+    if hosts.find_host("freecad") is None:
+        return [skipped(path, host, "run macro", "FreeCAD is not installed (apt-get install freecad)")]
+    try:
+        model = surface_model(result)
+        patch_set = surface_patches(model)
+    except ExportError as exc:
+        return [failed(path, host, "history", str(exc))]
+    with scratch_dir() as tmp:
+        fcstd = tmp / "replayed.FCStd"
+        try:
+            proc = hosts.run_freecad(path, [fcstd], timeout=300)
+        except ExportError as exc:
+            return [failed(path, host, "run macro", str(exc))]
+        checks = [exporter._summary_check(path, proc.stdout, len(model.states))]
+        if not fcstd.is_file():
+            return checks + [failed(path, host, "saved document", "the macro saved no .FCStd")]
+        reader, out = tmp / "read_back.py", tmp / "read.json"
+        write_text(reader, _SURFACE_READER.format(grid=list(PATCH_GRID)))
+        try:
+            hosts.run_freecad(reader, [fcstd, out], timeout=300)
+            data = json.loads(out.read_text(encoding="utf-8"))
+        except (ExportError, OSError, ValueError) as exc:
+            return checks + [failed(path, host, "reopen document", str(exc).splitlines()[0] if str(exc) else "")]
+    return (checks + _check_history(path, host, data["steps"], model)
+            + _check_surface(path, host, data["surface"], patch_set, model) + _check_mesh(path, host, data["mesh"], model))

@@ -68,9 +68,11 @@ def run_freecad(script: str | Path, args: Sequence[str] = (), timeout: float = 6
 
 
 def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600,
-                 defines: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
+                 defines: Mapping[str, str] | None = None, options: Sequence[str] = ()) -> subprocess.CompletedProcess:
     """Render ``scad`` to ``out`` (format from its suffix, e.g. STL) with OpenSCAD, no display needed;
-    ``defines`` override top-level variables (``-D name=value``, value as OpenSCAD source)."""
+    ``defines`` override top-level variables (``-D name=value``, value as OpenSCAD source); ``options``
+    are further command-line options (e.g. ``("--export-format", "binstl")``)."""
     exe = _require("openscad")
     extra = [arg for name, value in (defines or {}).items() for arg in ("-D", f"{name}={value}")]
+    extra += list(options)
     return _run([exe, *extra, "-o", str(out), str(scad)], "openscad", timeout)

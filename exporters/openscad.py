@@ -22,13 +22,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from gsr_cad.atomic import write_text
 from gsr_cad.errors import ExportError
 from gsr_cad.geometry import distance
+from gsr_cad.geometry.polymesh import PolyMesh
 
 from . import hosts
-from .base import Check, CurveSpline, Exporter, curve_spline, failed, measured, num, scratch_dir, skipped
+from .base import (Check, CurveSpline, Exporter, curve_spline, expect_equal, failed, measured, num, scratch_dir,
+                   skipped)
+from .blender import SurfaceModel, same_mesh, surface_model, triangle_faces
 
 WIDTH_FRACTION = 0.01
 SAG_FRACTION = 0.01
@@ -165,10 +169,11 @@ def footprint_distance(points: np.ndarray, tri: np.ndarray, chunk: int = 256) ->
 
 
 class OpenscadExporter(Exporter):
-    """``*.scad``: the curve as a stroke of configurable width plus the control polygon, as modules."""
+    """``*.scad``: a curve as a stroke of configurable width plus the control polygon; a surface as a
+    polyhedron of its limit mesh plus the control cage; each as modules."""
 
     name = "scad"
-    kinds = ("curve",)
+    kinds = ("curve", "surface")
     suffixes = (".scad",)
     host = "openscad"
 
@@ -221,6 +226,173 @@ class OpenscadExporter(Exporter):
             measured(path, self.host, f"{part}: our {ours} inside the footprint", float(outside.max()), rounding,
                      f"{len(inner)} points; deviation = farthest outside"),
         ]
+
+
+    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        model = surface_model(result)
+        return [write_text(out_dir / self.filename(stem), surface_scad(model, self.filename(stem)))]
+
+    def validate_surface(self, path: Path, result: Any) -> list[Check]:
+        if hosts.find_host("openscad") is None:
+            return [skipped(path, self.host, "render", "OpenSCAD is not installed (apt-get install openscad)")]
+        try:
+            model = surface_model(result)
+        except ExportError as exc:
+            return [failed(path, self.host, "history", str(exc))]
+        centre = scad_centre(model)
+        checks: list[Check] = []
+        with scratch_dir() as tmp:
+            meshes = {}
+            for part in ("surface", "cage_solid"):
+                stl = tmp / f"{part}.stl"
+                try:
+                    hosts.run_openscad(path, stl, timeout=300, defines={"part": f'"{part}"', "place": "false"},
+                                       options=("--export-format", "binstl"))
+                    meshes[part] = _load_stl(stl)
+                except ExportError as exc:
+                    checks.append(failed(path, self.host, f"render {part}", str(exc)))
+        if "surface" in meshes:
+            checks += self._compare_surface(path, model, centre, meshes["surface"])
+        if "cage_solid" in meshes:
+            got = np.asarray(meshes["cage_solid"].vertices, dtype=float)
+            ours = model.control.vertices - centre
+            dev = max(float(cKDTree(ours).query(got)[0].max()), float(cKDTree(got).query(ours)[0].max())) \
+                if len(got) else math.inf
+            checks.append(measured(path, self.host, "control cage vertices", dev / model.diagonal, SURFACE_TOL,
+                                   f"{model.control.n_vertices} vertices, both ways, relative to the diagonal"))
+        return checks
+
+    def _compare_surface(self, path: Path, model: SurfaceModel, centre: np.ndarray, mesh: Any) -> list[Check]:
+        host, diag = self.host, model.diagonal
+        ours = model.limit
+        tri = PolyMesh.from_faces(ours.vertices - centre, triangle_faces(ours))
+        want_volume = _signed_volume(tri.vertices, np.asarray(tri.faces))
+        checks = [
+            expect_equal(path, host, "watertight", bool(mesh.is_watertight), True),
+            expect_equal(path, host, "volume sign", bool(mesh.volume > 0), True),
+            measured(path, host, "volume", abs(float(mesh.volume) - want_volume) / max(abs(want_volume), 1e-300),
+                     SURFACE_TOL, f"relative to ours ({want_volume:.6g}); tolerance {SURFACE_TOL:.3g}"),
+        ]
+        dev, problem = same_mesh(tri, np.asarray(mesh.vertices), np.asarray(mesh.faces).tolist())
+        label = f"limit mesh (level {model.levels}) vertices and triangles"
+        if problem:
+            return checks + [failed(path, host, label, problem)]
+        return checks + [measured(path, host, label, dev / diag, SURFACE_TOL,
+                                  f"{ours.n_vertices} vertices, relative to the diagonal; tolerance {SURFACE_TOL:.3g}")]
+
+
+SURFACE_TOL = 1e-6
+"""Surface vertices read back from OpenSCAD's binary STL (single precision), relative to the diagonal."""
+CAGE_WIDTH_FRACTION = 0.005
+
+
+def scad_centre(model: SurfaceModel) -> np.ndarray:
+    """The point the ``.scad`` stores coordinates relative to: the limit mesh's bounding-box centre."""
+    lo, hi = model.limit.bbox
+    return 0.5 * (np.asarray(lo) + np.asarray(hi))
+
+
+def _signed_volume(v: np.ndarray, tri: np.ndarray) -> float:
+    return float(np.einsum("ij,ij->i", v[tri[:, 0]], np.cross(v[tri[:, 1]], v[tri[:, 2]])).sum() / 6.0)
+
+
+def _vec3(p: np.ndarray) -> str:
+    return "[" + ", ".join(num(x) for x in p) + "]"
+
+
+def _index_rows(rows: Any, per_line: int = 8) -> str:
+    items = ["[" + ", ".join(str(int(i)) for i in r) + "]" for r in rows]
+    return ",\n  ".join(", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line))
+
+
+_SURFACE_SCAD = """// {title}
+// Modules: gsr_limit_surface() = the Catmull-Clark limit surface ({levels} levels, vertices on the limit) as a
+// polyhedron; gsr_control_cage(width) = the edges of the control mesh; gsr_control_solid() = the control mesh
+// as a polyhedron. The history that built the control mesh ({n_ops} ops on the template):
+{listing}
+// Customize: openscad -D 'part="surface"' -o out.stl {filename}
+
+part = "both";  // [both, surface, cage, cage_solid]
+width = {width};  // thickness of the cage's edges
+place = true;  // false: draw the model about the origin (coordinates below are relative to gsr_centre)
+
+gsr_centre = {centre};
+
+// limit mesh: {n_points} points, {n_tri} triangles (clockwise seen from outside, as OpenSCAD wants)
+gsr_limit_points = [
+  {points}
+];
+gsr_limit_faces = [
+  {faces}
+];
+
+// control mesh: {n_cage} vertices, {n_cage_faces} faces (clockwise seen from outside), {n_edges} edges
+gsr_cage_points = [
+  {cage_points}
+];
+gsr_cage_faces = [
+  {cage_faces}
+];
+gsr_cage_edges = [
+  {cage_edges}
+];
+
+module gsr_limit_surface() {{
+  polyhedron(points = gsr_limit_points, faces = gsr_limit_faces, convexity = 10);
+}}
+
+module gsr_control_solid() {{
+  polyhedron(points = gsr_cage_points, faces = gsr_cage_faces, convexity = 10);
+}}
+
+module gsr_control_cage(width = width) {{
+  for (e = gsr_cage_edges)
+    hull() {{
+      translate(gsr_cage_points[e[0]]) sphere(d = width, $fn = 8);
+      translate(gsr_cage_points[e[1]]) sphere(d = width, $fn = 8);
+    }}
+}}
+
+module gsr_model() {{
+  if (part == "both" || part == "surface") color("gold") gsr_limit_surface();
+  if (part == "both" || part == "cage") color("dimgray") gsr_control_cage();
+  if (part == "cage_solid") gsr_control_solid();
+}}
+
+if (place) translate(gsr_centre) gsr_model();
+else gsr_model();
+"""
+
+
+def surface_scad(model: SurfaceModel, filename: str) -> str:
+    """The ``.scad`` text of a surface: limit-mesh polyhedron, control cage and history listing."""
+    centre = scad_centre(model)
+    limit, cage = model.limit, model.control
+    tris = [t[::-1] for t in triangle_faces(limit)]
+    cage_faces = [f[::-1] for f in cage.faces]
+    edges = sorted({(min(u, v), max(u, v)) for f in cage.faces for u, v in zip(f, f[1:] + f[:1])})
+    listing = "\n".join(f"//   {label}" for label in model.labels)
+    return _SURFACE_SCAD.format(
+        title=f"{filename}: a gsr_cad Catmull-Clark surface, {cage.n_faces} control faces (OpenSCAD 3-D)",
+        levels=model.levels, n_ops=len(model.labels) - 1, listing=listing, filename=filename,
+        width=num(CAGE_WIDTH_FRACTION * model.diagonal), centre=_vec3(centre), n_points=limit.n_vertices,
+        n_tri=len(tris), points=",\n  ".join(_vec3(p) for p in limit.vertices - centre), faces=_index_rows(tris),
+        n_cage=cage.n_vertices, n_cage_faces=cage.n_faces, n_edges=len(edges),
+        cage_points=",\n  ".join(_vec3(p) for p in cage.vertices - centre), cage_faces=_index_rows(cage_faces),
+        cage_edges=_index_rows(edges))
+
+
+def _load_stl(path: Path) -> Any:
+    """OpenSCAD's STL as a trimesh (vertices merged); ExportError when unreadable or empty."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(str(path), file_type="stl", force="mesh", process=True)
+    except Exception as exc:  # trimesh raises assorted errors on broken files
+        raise ExportError(f"cannot read OpenSCAD's STL: {exc}") from None
+    if len(mesh.faces) == 0:
+        raise ExportError("OpenSCAD rendered nothing")
+    return mesh
 
 
 def _read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,240 @@
+"""Surface exports to Blender, OpenSCAD and FreeCAD (and Blender curve scripts), judged by the real hosts.
+
+Each exported file is validated once per module (host runs are batched in fixtures); tampered copies
+(a moved vertex, a changed op, flipped faces) must be reported as failing.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+
+import numpy as np
+import pytest
+from test_export_results import hand_result
+
+from gsr_cad import genome as genome_mod
+from gsr_cad.cli.formats import export_all, format_names
+from gsr_cad.errors import ExportError
+from gsr_cad.exporters import hosts
+from gsr_cad.exporters.blender import BlenderExporter, surface_model
+from gsr_cad.exporters.freecad import FreecadMacroExporter
+from gsr_cad.exporters.openscad import OpenscadExporter
+from gsr_cad.geometry.polymesh import unit_cube
+from gsr_cad.geometry.subdivision import limit_mesh
+from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset, Scale, TranslateFace, TranslateVertex
+from gsr_cad.reconstruct.result import Result
+
+OPS = (Extrude(5, 0.42), Inset(1, 0.1), EdgeLoop(0), TranslateVertex(3, (0.05, -0.02, 0.1)), Bevel(2, 0.08),
+       TranslateFace(0, 0.07), Scale(1.3))
+
+
+def surface_result(ops=OPS, size: float = 2.0, center=(10.0, -5.0, 3.0)) -> Result:
+    """A surface Result as `gsr surface` saves it, built by replaying ``ops`` on a cube."""
+    cube = unit_cube(size, center)
+    config = {"levels": 2, "boundary": "all",
+              "template": {"source": "cube", "vertices": cube.vertices.tolist(), "faces": [list(f) for f in cube.faces]}}
+    return Result(kind="surface", config=config, seed=None, genome=tuple(ops), metrics={}, history=[],
+                  control_mesh=genome_mod.replay(cube, ops))
+
+
+def failures(checks) -> list[str]:
+    return [f"{c.check}: {c.detail}" for c in checks if c.passed is False]
+
+
+def names(checks) -> dict[str, str]:
+    return {c.check: c.status for c in checks}
+
+
+def _need(host: str) -> None:
+    if hosts.find_host(host) is None:
+        pytest.skip(f"{host} is not installed")
+
+
+# --- host-free: the shared surface model ----------------------------------------------------------------
+
+def test_surface_model_replays_labels_and_limit():
+    result = surface_result()
+    model = surface_model(result)
+    assert model.labels[0] == "00 template" and model.labels[1] == "01 extrude face 5 by 0.42"
+    assert len(model.states) == len(OPS) + 1 and model.ops[0] is None and model.ops[1]["op"] == "extrude"
+    assert model.control.faces == result.control_mesh.faces
+    # the limit mesh is the level-2 limit of the control mesh (cube checks: DESIGN.md)
+    plain = surface_model(surface_result(ops=(), size=1.0, center=(0.0, 0.0, 0.0)))
+    np.testing.assert_allclose(np.abs(plain.limit.vertices).max(), 34 / 81, rtol=1e-12)
+    np.testing.assert_array_equal(model.limit.vertices, limit_mesh(result.control_mesh, 2).vertices)
+
+
+def test_surface_model_rejects_an_inconsistent_result(tmp_path):
+    result = surface_result()
+    moved = np.array(result.control_mesh.vertices)
+    moved[0] += 0.01
+    bad = Result(kind="surface", config=result.config, seed=None, genome=result.genome, metrics={}, history=[],
+                 control_mesh=result.control_mesh.with_vertices(moved))
+    for exporter in (BlenderExporter(), OpenscadExporter(), FreecadMacroExporter()):
+        with pytest.raises(ExportError, match="does not rebuild control_mesh"):
+            exporter.export(bad, tmp_path, "bad")
+    no_template = Result(kind="surface", config={"levels": 2}, seed=None, genome=result.genome, metrics={},
+                         history=[], control_mesh=result.control_mesh)
+    with pytest.raises(ExportError, match="template"):
+        BlenderExporter().export(no_template, tmp_path, "bad")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_formats_registered_for_surfaces_and_curves():
+    assert {"blender", "scad", "fcmacro"} <= set(format_names("surface"))
+    assert "blender" in format_names("curve")
+
+
+def test_scad_polyhedron_faces_are_clockwise_from_outside(tmp_path):
+    result = surface_result()
+    (path,) = OpenscadExporter().export(result, tmp_path, "s")
+    text = path.read_text(encoding="utf-8")
+    block = lambda name: re.search(rf"{name} = \[\n(.*?)\n\];", text, re.S).group(1)  # noqa: E731
+    centre = np.array(json.loads(re.search(r"gsr_centre = (\[.*?\]);", text).group(1)))
+    points = np.array(json.loads("[" + block("gsr_limit_points") + "]")) + centre
+    faces = np.array(json.loads("[" + block("gsr_limit_faces") + "]"))
+    a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    signed = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+    assert signed < 0  # clockwise seen from outside: negative in the right-handed convention
+    np.testing.assert_allclose(np.sort(points, axis=0), np.sort(limit_mesh(result.control_mesh, 2).vertices, axis=0),
+                               rtol=0, atol=1e-12)
+
+
+# --- the hosts ----------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """One surface result exported in the three host formats (and saved), plus tampered copies."""
+    out = tmp_path_factory.mktemp("surface_hosts")
+    result = surface_result()
+    result.save(out)
+    files = export_all(result, out, ["blender", "scad", "fcmacro"], stem="surface")
+    return result, out, {p.suffix: p for p in files}
+
+
+@pytest.mark.blender
+@pytest.mark.xdist_group("blender")
+def test_blender_surface_round_trip(exported):
+    _need("blender")
+    result, _, files = exported
+    checks = BlenderExporter().validate(files[".py"], result)
+    assert failures(checks) == []
+    got = {c.check: c for c in checks}
+    assert got["control vertices"].deviation < 1e-6
+    assert got["modifier (levels 2) vs our limit mesh"].deviation < 1e-5
+
+
+@pytest.mark.blender
+@pytest.mark.xdist_group("blender")
+def test_blender_surface_changed_op_fails(exported, tmp_path):
+    _need("blender")
+    result, _, files = exported
+    text = files[".py"].read_text(encoding="utf-8")
+    assert "extrude(bm, V, F, face=5, distance=0.42)" in text
+    edited = tmp_path / "edited_blender.py"
+    edited.write_text(text.replace("face=5, distance=0.42", "face=5, distance=0.45"), encoding="utf-8")
+    got = names(BlenderExporter().validate(edited, result))
+    assert got["control vertices"] == "FAIL"
+
+
+@pytest.mark.openscad
+def test_openscad_surface_is_a_watertight_solid_equal_to_our_limit_mesh(exported):
+    _need("openscad")
+    result, _, files = exported
+    checks = OpenscadExporter().validate(files[".scad"], result)
+    assert failures(checks) == []
+    got = names(checks)
+    for check in ("watertight", "volume sign", "volume", "limit mesh (level 2) vertices and triangles",
+                  "control cage vertices"):
+        assert got[check] == "pass"
+
+
+@pytest.mark.openscad
+def test_openscad_moved_vertex_and_flipped_faces_fail(exported, tmp_path):
+    _need("openscad")
+    result, _, files = exported
+    text = files[".scad"].read_text(encoding="utf-8")
+    start = text.index("gsr_limit_points = [\n  [") + len("gsr_limit_points = [\n  [")
+    end = text.index(",", start)
+    moved = tmp_path / "moved.scad"
+    moved.write_text(text[:start] + repr(float(text[start:end]) + 1e-3) + text[end:], encoding="utf-8")
+    assert names(OpenscadExporter().validate(moved, result))["limit mesh (level 2) vertices and triangles"] == "FAIL"
+    head, body = text.split("gsr_limit_faces = [\n", 1)
+    faces, tail = body.split("\n];", 1)
+    flipped_faces = re.sub(r"\[(\d+), (\d+), (\d+)\]", r"[\3, \2, \1]", faces)
+    flipped = tmp_path / "flipped.scad"
+    flipped.write_text(head + "gsr_limit_faces = [\n" + flipped_faces + "\n];" + tail, encoding="utf-8")
+    assert names(OpenscadExporter().validate(flipped, result))["volume sign"] == "FAIL"
+
+
+@pytest.mark.freecad
+def test_freecad_surface_macro_history_patches_and_mesh(exported):
+    _need("freecad")
+    result, _, files = exported
+    checks = FreecadMacroExporter().validate(files[".FCMacro"], result)
+    assert failures(checks) == []
+    got = names(checks)
+    for check in ("JSON summary", "one object per op", "op labels", "op records", "only the last step visible",
+                  "history control meshes", "limit surface: valid closed solid", "limit surface: poles",
+                  "limit surface: volume positive", "limit mesh (level 2)"):
+        assert got[check] == "pass", check
+    assert any(k.startswith("limit surface: FreeCAD's") and v == "pass" for k, v in got.items())
+
+
+@pytest.mark.freecad
+def test_freecad_changed_op_fails(exported, tmp_path):
+    _need("freecad")
+    result, _, files = exported
+    text = files[".FCMacro"].read_text(encoding="utf-8")
+    assert "'01 extrude face 5 by 0.42'" in text
+    edited = tmp_path / "edited.FCMacro"
+    edited.write_text(text.replace("'01 extrude face 5 by 0.42'", "'01 extrude face 5 by 0.5'")
+                      .replace('"distance": 0.42}', '"distance": 0.5}'), encoding="utf-8")
+    got = names(FreecadMacroExporter().validate(edited, result))
+    assert got["op labels"] == "FAIL" and got["op records"] == "FAIL"
+
+
+@pytest.mark.blender
+@pytest.mark.openscad
+@pytest.mark.freecad
+def test_gsr_validate_passes_then_reports_a_damaged_file(gsr, exported, tmp_path):
+    for host in ("blender", "openscad", "freecad"):
+        _need(host)
+    _, out, files = exported
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    run = gsr("validate", copy)
+    assert run.code == 0, run.out
+    assert "blender" in run.out and "openscad" in run.out and "freecad" in run.out
+    scad = copy / files[".scad"].name
+    text = scad.read_text(encoding="utf-8")
+    pos = text.index("gsr_cage_points = [\n  [") + len("gsr_cage_points = [\n  [")
+    scad.write_text(text[:pos] + "0.5 + " + text[pos:], encoding="utf-8")
+    run = gsr("validate", copy)
+    assert run.code == 1 and "FAIL" in run.out
+
+
+@pytest.mark.blender
+@pytest.mark.xdist_group("blender")
+@pytest.mark.parametrize("scheme", ["bspline", "chaikin"])
+def test_blender_curve_script_rebuilds_history_and_nurbs(tmp_path, scheme):
+    _need("blender")
+    result = hand_result(seed=21, scheme=scheme, n_ops=9, scale=3.0, offset=(40.0, -7.0))
+    exporter = BlenderExporter()
+    (path,) = exporter.export(result, tmp_path, "curve")
+    checks = exporter.validate(path, result)
+    assert failures(checks) == []
+    got = names(checks)
+    for check in ("NURBS settings", "poles", "weights", "one object per op", "op labels",
+                  "only the last step visible", "history polygons"):
+        assert got[check] == "pass"
+    assert any(k.endswith("evaluated points") and v == "pass" for k, v in got.items())
+    text = path.read_text(encoding="utf-8")
+    op = result.genome[-1].to_json()
+    assert f"# {len(result.genome):02d} " in text and (f"{op['op']}(points, {op['index']}" in text)
+    edited = tmp_path / "edited_blender.py"
+    edited.write_text(text.replace(f"{op['op']}(points, {op['index']}, (", f"{op['op']}(points, {op['index']}, (0.25 + "),
+                      encoding="utf-8")
+    assert "FAIL" in names(exporter.validate(edited, result)).values()
