@@ -6,8 +6,9 @@ calls per second, and the time of one call (best of several repeats of a timed l
 
 * ``subdivision``: Catmull-Clark level 3 with limit positions (:func:`limit_mesh`) on meshes of 6 to 500
   faces. *cached*: a fresh PolyMesh with known connectivity each call (key, LRU hit, one sparse product,
-  the output PolyMesh); *uncached*: the cache cleared before each call (matrices and topology rebuilt);
-  *product*: the sparse product alone (``CatmullClark.limit``).
+  the output PolyMesh); *uncached*: the cache cleared before each call (the control mesh's topology and
+  every matrix rebuilt, as when the GA meets a new connectivity); *product*: the sparse product alone
+  (``CatmullClark.limit``).
 
     python benchmarks/kernel.py                      # every section -> benchmarks/results/kernel.md
     python benchmarks/kernel.py --quick --sections subdivision
@@ -89,11 +90,32 @@ def inset_extruded_cube() -> PolyMesh:
     return PolyMesh.from_faces(np.vstack([c.vertices, ring, cap]), faces)
 
 
+def studded_cube() -> PolyMesh:
+    """The template cube with every face inset and extruded (54 faces, valence 3 to 6): the size of the
+    control mesh of a typical genome."""
+    c = unit_cube()
+    vertices, faces = [c.vertices], []
+    for face in c.faces:
+        corners = c.vertices[list(face)]
+        centre = corners.mean(axis=0)
+        ring = centre + 0.6 * (corners - centre)
+        cap = ring + 0.4 * centre  # the cube is centred on the origin: centre points outwards
+        r = len(np.concatenate(vertices)) + np.arange(4)
+        k = r + 4
+        vertices += [ring, cap]
+        for i in range(4):
+            j = (i + 1) % 4
+            faces += [[face[i], face[j], r[j], r[i]], [r[i], r[j], k[j], k[i]]]
+        faces.append(list(k))
+    return PolyMesh.from_faces(np.concatenate(vertices), faces)
+
+
 def subdivision_meshes(quick: bool) -> dict[str, PolyMesh]:
     meshes = {
         "cube": unit_cube(),
         "inset+extruded cube": inset_extruded_cube(),
         "torus 8x4": torus(8, 4),
+        "studded cube": studded_cube(),
         "torus 16x8, half triangles": torus(16, 8, triangles=True),
         "torus 25x20": torus(25, 20),
     }

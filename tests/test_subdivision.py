@@ -19,6 +19,7 @@ from gsr_cad.errors import ConfigError, InputError, TopologyError
 from gsr_cad.geometry import subdivision as sd
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import CatmullClark, get_catmull_clark, limit_mesh, refine
+from gsr_cad.geometry.topology import Topology
 from gsr_cad.geometry.validation import validate_mesh
 from gsr_cad.reconstruct.meshio import load_mesh, save_obj
 
@@ -330,6 +331,17 @@ def test_refined_meshes_stay_valid_and_keep_euler_characteristic():
             out = limit_mesh(mesh, levels)
             validate_mesh(out, require_closed=name not in OPEN, require_quads=True)
             assert out.topology.euler_characteristic == chi
+
+
+def test_refined_topology_matches_a_sorted_one():
+    """The refined topology, derived in closed form, is the one Topology builds by sorting the refined faces."""
+    for name, mesh in MESHES.items():
+        for levels in (1, 2):
+            cc = CatmullClark(mesh, levels)
+            fresh = Topology(cc.corners, cc.offsets, cc.n_vertices)
+            for key, value in vars(fresh).items():
+                np.testing.assert_array_equal(getattr(cc.topology, key), value, err_msg=f"{name} {levels} {key}")
+            assert cc.limit(mesh.vertices).topology is cc.topology
 
 
 def test_topology_input_and_level_zero():

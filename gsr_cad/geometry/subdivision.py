@@ -33,13 +33,22 @@ vertex is a quad, which a level-0 mesh need not be; so the level-0 limit is take
 level-1 vertex points (the same surface points), ``L_1 @ S_1`` restricted to the vertex-point rows.
 OpenSubdiv's level-0 limit (as lagrange returns it) applies the quad stencil beside triangles and
 n-gons too and lands off the surface there; its level-1 limit points agree with ours.
+
+Construction is a hot path (the surface GA builds one for every new connectivity), so nothing is sorted
+after the input's own Topology: each level's connectivity (twins, edge order, the corners around each
+vertex) follows from the previous level's in closed form; every stencil row is written straight into CSR
+layout with its weights summed beforehand; the level matrices are composed right to left, one sparse
+product per level. The limit stencil of level ``k`` is built from the level ``k - 1`` connectivity, so
+the topology of the last level is derived only when asked for (:attr:`CatmullClark.topology`).
 """
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections import OrderedDict
-from typing import Literal
+from collections.abc import Callable
+from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -55,24 +64,6 @@ MAX_REFINED_FACES = 2_000_000
 exhausting memory."""
 
 
-def _ragged_face_corners(offsets: np.ndarray, sizes: np.ndarray, owner_face: np.ndarray):
-    """For every item ``i`` owning face ``owner_face[i]``: ``(item index, corner index)`` over that face."""
-    counts = sizes[owner_face]
-    item = np.repeat(np.arange(len(owner_face)), counts)
-    starts = np.cumsum(counts) - counts
-    local = np.arange(int(counts.sum())) - np.repeat(starts, counts)
-    return item, offsets[owner_face][item] + local
-
-
-def _fixed_vertices(topo: Topology, boundary: str) -> np.ndarray:
-    """Vertices that never move: unused ones, and topological corners in "corners" mode."""
-    faces_at = np.bincount(topo.he_origin, minlength=topo.n_vertices)
-    fixed = faces_at == 0
-    if boundary == "corners":
-        fixed |= topo.vertex_is_boundary & (faces_at == 1) & (topo.vertex_valence == 2)
-    return fixed
-
-
 def _check_options(levels: int, boundary: str) -> int:
     if isinstance(levels, bool) or not isinstance(levels, (int, np.integer)) or levels < 0:
         raise ConfigError(f"subdivision levels must be a whole number >= 0, got {levels!r}")
@@ -81,114 +72,341 @@ def _check_options(levels: int, boundary: str) -> int:
     return int(levels)
 
 
-def _check_manifold(topo: Topology) -> None:
-    from .validation import vertex_fans
+def _indptr(counts: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(counts) + 1, dtype=np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
 
-    if np.any(vertex_fans(topo) > 1):
+
+def _ragged(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For items with ``counts`` entries each: the item of every entry and its rank within the item."""
+    owner = np.repeat(np.arange(len(counts)), counts)
+    return owner, np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
+class _Level(NamedTuple):
+    """One level of refinement: topology, face offsets, the corners grouped by vertex
+    (``vcorners[vptr[v]:vptr[v + 1]]`` are the half-edges leaving ``v``, in no particular order), and
+    whether every face is a quad (always so after one step)."""
+
+    topo: Topology
+    offsets: np.ndarray
+    vptr: np.ndarray
+    vcorners: np.ndarray
+    quads: bool
+
+    @property
+    def sizes(self) -> np.ndarray:
+        return np.diff(self.offsets)
+
+    def walk(self, he: np.ndarray, k: np.ndarray | int) -> np.ndarray:
+        """The half-edge ``k`` steps after ``he`` around its face."""
+        face = self.topo.he_face[he]
+        start = self.offsets[face]
+        return start + (he - start + k) % (self.offsets[face + 1] - start)
+
+
+def _base_level(topo: Topology, offsets: np.ndarray) -> _Level:
+    counts = np.bincount(topo.he_origin, minlength=topo.n_vertices)
+    quads = bool(np.all(np.diff(offsets) == 4))
+    return _Level(topo, offsets, _indptr(counts), np.argsort(topo.he_origin, kind="stable"), quads)
+
+
+def _refined_faces(t: Topology) -> tuple[np.ndarray, np.ndarray]:
+    """Corners and offsets of the next level: quad ``h`` for half-edge ``h`` (module docstring)."""
+    nv, ne = t.n_vertices, t.n_edges
+    corners = np.stack([t.he_origin, nv + t.he_edge, nv + ne + t.he_face, nv + t.he_edge[t.he_prev]], axis=1)
+    return corners.ravel(), np.arange(0, corners.size + 1, 4, dtype=np.int64)
+
+
+def _refined_twins(t: Topology) -> np.ndarray:
+    """Twins of the next level in closed form (no sorting): half-edge ``4 h + j`` leaves corner ``j`` of
+    quad ``h``; its twin is in the quad of ``next(h)`` or ``prev(h)``, or across the split edge."""
+    nxt, prv, twin = t.he_next, t.he_prev, t.he_twin
+    twin_prev = twin[prv]
+    return np.stack([np.where(twin >= 0, 4 * nxt[twin] + 3, -1), 4 * nxt + 2, 4 * prv + 1,
+                     np.where(twin_prev >= 0, 4 * twin_prev, -1)], axis=1).ravel()
+
+
+def _refined_topology(t: Topology) -> Topology:
+    """The next level's topology, derived without sorting (same arrays as Topology's constructor gives)."""
+    return Topology.from_twins(*_refined_faces(t), t.n_vertices + t.n_edges + t.n_faces, _refined_twins(t))
+
+
+def _refined_level(level: _Level) -> _Level:
+    """The next level. Its corner groups follow from ``level``'s: at a vertex point, corner 0 of the quads
+    of the vertex's corners; at the point of edge ``h0`` (twin ``t0``), corners 1 and 3 of quads ``h0`` and
+    ``next(h0)``, then of ``t0`` and ``next(t0)``; at a face point, corner 2 of the face's quads."""
+    t = level.topo
+    topo = _refined_topology(t)
+    h0 = t.edge_halfedge
+    t0 = t.he_twin[h0]
+    inner = t0 >= 0
+    at_edge = np.stack([4 * h0 + 1, 4 * t.he_next[h0] + 3, 4 * t0 + 1, 4 * t.he_next[t0] + 3], axis=1)
+    keep = np.ones((t.n_edges, 4), dtype=bool)
+    keep[:, 2:] = inner[:, None]
+    counts = np.concatenate([np.diff(level.vptr), 2 + 2 * inner, level.sizes])
+    vcorners = np.concatenate([4 * level.vcorners, at_edge[keep], 4 * np.arange(len(t.he_origin)) + 2])
+    offsets = np.arange(0, len(topo.he_origin) + 1, 4, dtype=np.int64)
+    return _Level(topo, offsets, _indptr(counts), vcorners, True)
+
+
+def _check_manifold(level: _Level) -> None:
+    """Refuse a vertex whose corners form more than one fan (corners ``h`` and ``twin(prev(h))`` touch), and
+    a face on both sides of an edge (refinements of any other manifold mesh stay manifold).
+
+    Pointer jumping along ``h -> twin(prev(h))``: once ``2**rounds`` exceeds every vertex's corner count,
+    each open fan is represented by its last corner and each closed one by its lowest.
+    """
+    topo = level.topo
+    rot = topo.he_twin[topo.he_prev]
+    h = np.arange(len(rot))
+    last = rot < 0
+    jump = np.where(last, h, rot)
+    low = h
+    for _ in range(int(np.diff(level.vptr).max()).bit_length()):
+        low = np.minimum(low, low[jump])
+        jump = jump[jump]
+    fan = np.where(last[jump], jump, low) == h
+    if np.any(np.bincount(topo.he_origin[fan], minlength=topo.n_vertices) > 1):
         raise TopologyError("Catmull-Clark needs a manifold mesh: a vertex joins separate fans of faces")
+    if np.any(topo.edge_faces[:, 0] == topo.edge_faces[:, 1]):  # its refinement would repeat an edge
+        raise TopologyError("Catmull-Clark needs faces that do not border themselves: a face is on both sides "
+                            "of an edge")
 
 
-def _step(topo: Topology, offsets: np.ndarray, boundary: str) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
-    """One Catmull-Clark step: the ``(n_v + n_e + n_f, n_v)`` matrix and the refined corners/offsets."""
-    nv, ne, nf = topo.n_vertices, topo.n_edges, topo.n_faces
-    corners = topo.he_origin
-    sizes = np.diff(offsets)
-    n_he = len(corners)
-    he_face = topo.he_face
-    he_edge = topo.he_edge
-    e_boundary = topo.edge_is_boundary
-    v_boundary = topo.vertex_is_boundary
-    valence = topo.vertex_valence.astype(np.float64)
-    fixed = _fixed_vertices(topo, boundary)
-    smooth = ~v_boundary & ~fixed
-    crease = v_boundary & ~fixed
-    inv_n2 = np.divide(1.0, valence**2, out=np.zeros(nv), where=valence > 0)
-    a, b = topo.edges[:, 0], topo.edges[:, 1]
-    inv_size = 1.0 / sizes
-
-    rows, cols, vals = [], [], []
-
-    # face points
-    rows.append(nv + ne + he_face)
-    cols.append(corners)
-    vals.append(inv_size[he_face])
-
-    # edge points: the two end points, plus the face points on an interior edge
-    ew = np.where(e_boundary, 0.5, 0.25)
-    rows += [nv + np.arange(ne)] * 2
-    cols += [a, b]
-    vals += [ew, ew]
-    interior_he = np.flatnonzero(~e_boundary[he_edge])
-    item, corner = _ragged_face_corners(offsets, sizes, he_face[interior_he])
-    rows.append(nv + he_edge[interior_he][item])
-    cols.append(corners[corner])
-    vals.append(0.25 * inv_size[he_face[interior_he]][item])
-
-    # vertex points: self weight
-    smooth_w = np.divide(valence - 2.0, valence, out=np.zeros(nv), where=valence > 0)
-    self_w = np.where(fixed, 1.0, np.where(crease, 0.75, smooth_w))
-    rows.append(np.arange(nv))
-    cols.append(np.arange(nv))
-    vals.append(self_w)
-    # smooth vertices: every edge neighbour and every face point at 1 / n**2
-    for p, q in ((a, b), (b, a)):
-        m = smooth[p]
-        rows.append(p[m])
-        cols.append(q[m])
-        vals.append(inv_n2[p[m]])
-    smooth_he = np.flatnonzero(smooth[corners])
-    item, corner = _ragged_face_corners(offsets, sizes, he_face[smooth_he])
-    v_of = corners[smooth_he][item]
-    rows.append(v_of)
-    cols.append(corners[corner])
-    vals.append(inv_n2[v_of] * inv_size[he_face[smooth_he]][item])
-    # boundary vertices: the two boundary neighbours at 1/8
-    for p, q in ((a, b), (b, a)):
-        m = e_boundary & crease[p]
-        rows.append(p[m])
-        cols.append(q[m])
-        vals.append(np.full(int(m.sum()), 0.125))
-
-    matrix = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nv + ne + nf, nv))
-    matrix.sum_duplicates()
-
-    quads = np.stack([corners, nv + he_edge, nv + ne + he_face, nv + he_edge[topo.he_prev]], axis=1)
-    return matrix, quads.ravel(), np.arange(0, 4 * n_he + 1, 4, dtype=np.int64)
+Block = tuple[np.ndarray, Callable[[np.ndarray, np.ndarray], None]]
+"""Consecutive rows of a sparse matrix: their lengths, and a function writing their column indices and
+values into the slices of the matrix's arrays that hold them (CSR order, positions relative to the slice)."""
 
 
-def _limit_stencil(topo: Topology, boundary: str) -> sp.csr_matrix:
-    """Limit positions of the vertices of an all-quad mesh, ``(n_v, n_v)``."""
-    nv = topo.n_vertices
-    fixed = _fixed_vertices(topo, boundary)
-    smooth = ~topo.vertex_is_boundary & ~fixed
-    crease = topo.vertex_is_boundary & ~fixed
-    n = topo.vertex_valence.astype(np.float64)
-    denom = np.where(smooth, n * (n + 5.0), 1.0)
-    a, b = topo.edges[:, 0], topo.edges[:, 1]
-    e_boundary = topo.edge_is_boundary
+def _table(cols: list, vals: list, lengths: np.ndarray | None = None) -> Block:
+    """Rows whose entry ``j`` is ``cols[j]``, ``vals[j]`` (arrays over the rows, or numbers); row ``i`` keeps
+    its first ``lengths[i]`` entries (all when None)."""
+    n, w = len(cols[0]), len(cols)
+    if lengths is None:
+        def fill(indices, data):
+            indices, data = indices.reshape(n, w), data.reshape(n, w)
+            for j in range(w):
+                indices[:, j] = cols[j]
+                data[:, j] = vals[j]
+        return np.full(n, w), fill
 
-    rows = [np.arange(nv)]
-    cols = [np.arange(nv)]
-    vals = [np.where(fixed, 1.0, np.where(crease, 4.0 / 6.0, n * n / denom))]
-    for p, q in ((a, b), (b, a)):
-        m = smooth[p]
-        rows.append(p[m])
-        cols.append(q[m])
-        vals.append(4.0 / denom[p[m]])
-        m = crease[p] & e_boundary
-        rows.append(p[m])
-        cols.append(q[m])
-        vals.append(np.full(int(m.sum()), 1.0 / 6.0))
-    he = np.flatnonzero(smooth[topo.he_origin])
-    diagonal = topo.he_origin[topo.he_next[topo.he_next[he]]]
-    rows.append(topo.he_origin[he])
-    cols.append(diagonal)
-    vals.append(1.0 / denom[topo.he_origin[he]])
-    matrix = sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nv, nv))
-    matrix.sum_duplicates()
-    return matrix
+    def fill(indices, data):
+        keep = np.arange(w) < lengths[:, None]
+        indices[:] = np.stack(cols, axis=1)[keep]
+        data[:] = np.stack(np.broadcast_arrays(*vals), axis=1)[keep]
+    return lengths, fill
+
+
+def _csr(blocks: list[Block], n_cols: int) -> sp.csr_matrix:
+    """The CSR matrix of row blocks stacked in order, written in place: no sorting, no summing."""
+    lengths = [b[0] for b in blocks]
+    sizes = [int(x.sum()) for x in lengths]
+    nnz = sum(sizes)
+    index = np.int32 if max(n_cols, nnz) < 2**31 else np.int64
+    n_rows = sum(len(x) for x in lengths)
+    indptr = np.zeros(n_rows + 1, dtype=index)
+    np.cumsum(np.concatenate(lengths), out=indptr[1:])
+    indices = np.empty(nnz, dtype=index)
+    data = np.empty(nnz)
+    start = 0
+    for (_, fill), size in zip(blocks, sizes):
+        fill(indices[start:start + size], data[start:start + size])
+        start += size
+    return sp.csr_matrix((data, indices, indptr), shape=(n_rows, n_cols))
+
+
+class _VertexLayout:
+    """Where the vertex rows of one level's stencils go in CSR layout; shared by the stencils with the same
+    number of entries per smooth corner (on quads, the step and the limit: two each).
+
+    Row of a fixed vertex (unused, or a preserved corner): itself. Of a boundary vertex: itself, then the
+    ends of its outgoing and incoming boundary half-edges. Of a smooth vertex: itself, then ``width``
+    entries for each of its corners in turn (``generic``: ``size - 2`` for the corner's face, else two).
+    """
+
+    def __init__(self, level: _Level, boundary: str, generic: bool):
+        t = level.topo
+        nv = t.n_vertices
+        count = np.diff(level.vptr)
+        bh = np.flatnonzero(t.he_twin < 0)
+        out_he = np.full(nv, -1, dtype=np.int64)
+        out_he[t.he_origin[bh]] = bh
+        fixed = count == 0
+        if boundary == "corners":  # a topological corner: one face, two boundary edges
+            fixed |= (out_he >= 0) & (count == 1)
+        crease = (out_he >= 0) & ~fixed
+        smooth = (out_he < 0) & ~fixed
+        self.crease = np.flatnonzero(crease)
+        self.smooth = np.flatnonzero(smooth)
+        in_he = np.empty(nv, dtype=np.int64)
+        in_he[t.he_dest[bh]] = bh
+        self.out_he, self.in_he = out_he[self.crease], in_he[self.crease]
+
+        owner = np.repeat(np.arange(nv), count)
+        at_smooth = smooth[owner]
+        self.corners = level.vcorners[at_smooth]
+        self.valence = count.astype(np.float64)
+        self.corner_valence = self.valence[owner[at_smooth]]
+        self.width = level.sizes[t.he_face[self.corners]] - 2 if generic else 2
+        widths = np.zeros(len(owner), dtype=np.int64)
+        widths[at_smooth] = self.width
+        before = _indptr(widths)
+        self.lengths = 1 + 2 * crease + before[level.vptr[1:]] - before[level.vptr[:-1]]
+        self.ptr = _indptr(self.lengths)[:-1]
+        shift = self.ptr + 1 - before[level.vptr[:-1]]
+        self.pos = np.arange(before[-1]) + np.repeat(shift[owner[at_smooth]], self.width)
+
+    def rows(self, smooth_self: np.ndarray, crease: tuple[float, float], crease_cols: tuple, cols: np.ndarray,
+             vals: np.ndarray) -> Block:
+        """Rows with ``smooth_self`` on each smooth vertex, ``crease`` (self, neighbour) weights on the
+        ``crease_cols`` (outgoing, incoming), and ``cols``/``vals`` for the smooth vertices' corners."""
+        def fill(indices, data):
+            indices[self.ptr] = np.arange(len(self.ptr))
+            data[self.ptr] = 1.0
+            data[self.ptr[self.smooth]] = smooth_self
+            if self.crease.size:
+                at = self.ptr[self.crease]
+                data[at] = crease[0]
+                indices[at + 1], indices[at + 2] = crease_cols
+                data[at + 1] = data[at + 2] = crease[1]
+            indices[self.pos] = cols
+            data[self.pos] = vals
+        return self.lengths, fill
+
+
+def _pairs(a: np.ndarray, b) -> np.ndarray:
+    """``a[0], b[0], a[1], b[1], ...`` (``b`` may be a number)."""
+    out = np.empty((len(a), 2), dtype=np.result_type(a, b))
+    out[:, 0] = a
+    out[:, 1] = b
+    return out.ravel()
+
+
+def _step(level: _Level, layout: _VertexLayout) -> sp.csr_matrix:
+    """One Catmull-Clark step as a ``(n_v + n_e + n_f, n_v)`` matrix: vertex, edge, then face points.
+
+    Smooth vertex point ``(n - 2)/n v + sum(neighbours)/n**2 + sum(face points)/n**2``, edge point
+    ``(v0 + v1 + F0 + F1) / 4``, both with the face points expanded into their corners so that no entry
+    repeats (on quads: ``3/(2 n**2)`` per neighbour, ``1/(4 n**2)`` per diagonal; ``3/8`` and ``1/16``);
+    boundary vertex ``(u0 + 6 v + u1) / 8``.
+    """
+    t = level.topo
+    nv = t.n_vertices
+    o, nxt, prv = t.he_origin, t.he_next, t.he_prev
+    sizes = level.sizes
+    he, n = layout.corners, layout.corner_valence
+    crease_cols = (t.he_dest[layout.out_he], o[layout.in_he])
+    if level.quads:  # he ^ 2 is next(next(he)) in a quad
+        valence = layout.valence[layout.smooth]
+        vertices = layout.rows((valence - 1.75) / valence, (0.75, 0.125), crease_cols,
+                               _pairs(o[nxt[he]], o[he ^ 2]), _pairs(1.5 / n**2, 0.25 / n**2))
+        h0 = t.edge_halfedge
+        t0 = t.he_twin[h0]
+        cols = [o[h0], o[nxt[h0]], o[h0 ^ 2], o[prv[h0]], o[t0 ^ 2], o[prv[t0]]]
+        if np.all(t0 >= 0):
+            edges = _table(cols, [0.375, 0.375, 0.0625, 0.0625, 0.0625, 0.0625])
+        else:
+            ends = np.where(t0 >= 0, 0.375, 0.5)
+            edges = _table(cols, [ends, ends, 0.0625, 0.0625, 0.0625, 0.0625], np.where(t0 >= 0, 6, 2))
+    else:  # dest(he), then the corners of face(he) up to prev(he), excluded
+        m_he = sizes[t.he_face].astype(np.float64)
+        item, rank = _ragged(layout.width)
+        near = (1.0 + 1.0 / m_he[he] + 1.0 / m_he[t.he_twin[he]]) / n**2
+        vals = np.where(rank == 0, near[item], (1.0 / (n**2 * m_he[he]))[item])
+        v = layout.smooth
+        inv = np.bincount(o, weights=1.0 / m_he, minlength=nv)[v]
+        valence = layout.valence[v]
+        vertices = layout.rows((valence - 2.0) / valence + inv / valence**2, (0.75, 0.125), crease_cols,
+                               o[level.walk(he[item], rank + 1)], vals)
+        edges = _polygon_edge_rows(level)
+
+    def faces(indices, data):
+        indices[:] = o
+        data[:] = 0.25 if level.quads else np.repeat(1.0 / sizes, sizes)
+    return _csr([vertices, edges, (sizes, faces)], nv)
+
+
+def _polygon_edge_rows(level: _Level) -> Block:
+    """Edge-point rows on any polygons: the ends at ``1/4 + 1/(4 m0) + 1/(4 m1)``, the other corners of the
+    two faces at ``1/(4 m)``; a boundary edge's midpoint."""
+    t = level.topo
+    h0 = t.edge_halfedge
+    t0 = t.he_twin[h0]
+    inner = np.flatnonzero(t0 >= 0)
+    hi, ti = h0[inner], t0[inner]
+    m0, m1 = level.sizes[t.he_face[hi]], level.sizes[t.he_face[ti]]
+    lengths = np.full(t.n_edges, 2, dtype=np.int64)
+    lengths[inner] = m0 + m1 - 2
+
+    def fill(indices, data):
+        ptr = _indptr(lengths)[:-1]
+        indices[ptr], indices[ptr + 1] = t.edges[:, 0], t.edges[:, 1]
+        data[ptr] = data[ptr + 1] = 0.5
+        data[ptr[inner]] = data[ptr[inner] + 1] = 0.25 + 0.25 / m0 + 0.25 / m1
+        for he, m, first in ((hi, m0, 2), (ti, m1, m0)):
+            item, rank = _ragged(m - 2)  # the corners of face(he) after dest(he), up to prev(he)
+            pos = (ptr[inner] + first)[item] + rank
+            indices[pos] = t.he_origin[level.walk(he[item], rank + 2)]
+            data[pos] = 0.25 / m[item]
+    return lengths, fill
+
+
+def _limit(level: _Level, layout: _VertexLayout, vertex_points_only: bool = False) -> sp.csr_matrix:
+    """``L_{k+1}``: the limit positions of the level-``k + 1`` points (all quads there) in terms of those
+    points, built from the level-``k`` connectivity (the level-``k + 1`` topology is never needed).
+
+    Valence-``n`` smooth point: ``(n**2 p + 4 sum(neighbours) + sum(diagonals)) / (n (n + 5))``; boundary
+    point ``(u0 + 4 p + u1) / 6``; preserved corner ``p``. Around the vertex point of ``v`` the neighbours
+    are the points of ``v``'s edges and the diagonals those of its faces; an edge point (valence 4, or on
+    the boundary) has its end points and face points as neighbours and the points of the edges before and
+    after it in both faces as diagonals; the point of an ``m``-gon (valence ``m``) has the points of the
+    face's edges as neighbours and its corners as diagonals. ``layout`` must have two entries per corner.
+    """
+    t = level.topo
+    nv, ne, nf = t.n_vertices, t.n_edges, t.n_faces
+    ep = nv + t.he_edge  # per half-edge: the point of its edge, of its face
+    fp = nv + ne + t.he_face
+    he, n = layout.corners, layout.corner_valence
+    valence = layout.valence[layout.smooth]
+    d = 1.0 / (n * (n + 5.0))
+    vertices = layout.rows(valence / (valence + 5.0), (4.0 / 6.0, 1.0 / 6.0), (ep[layout.out_he], ep[layout.in_he]),
+                           _pairs(ep[he], fp[he]), _pairs(4.0 * d, d))
+    n_points = nv + ne + nf
+    if vertex_points_only:
+        return _csr([vertices], n_points)
+
+    h0 = t.edge_halfedge
+    t0 = t.he_twin[h0]
+    nxt, prv = t.he_next, t.he_prev
+    cols = [nv + np.arange(ne), t.edges[:, 0], t.edges[:, 1], fp[h0], fp[t0], ep[prv[h0]], ep[nxt[h0]], ep[prv[t0]],
+            ep[nxt[t0]]]
+    if np.all(t0 >= 0):
+        edges = _table(cols, [16 / 36, 4 / 36, 4 / 36, 4 / 36, 4 / 36, 1 / 36, 1 / 36, 1 / 36, 1 / 36])
+    else:
+        inner = t0 >= 0
+        self_w, end = np.where(inner, 16 / 36, 4 / 6), np.where(inner, 4 / 36, 1 / 6)
+        edges = _table(cols, [self_w, end, end, 4 / 36, 4 / 36, 1 / 36, 1 / 36, 1 / 36, 1 / 36],
+                       np.where(inner, 9, 3))
+
+    if level.quads:
+        e4, o4 = ep.reshape(nf, 4), t.he_origin.reshape(nf, 4)
+        faces = _table([nv + ne + np.arange(nf), e4[:, 0], o4[:, 0], e4[:, 1], o4[:, 1], e4[:, 2], o4[:, 2],
+                        e4[:, 3], o4[:, 3]], [4 / 9, 4 / 36, 1 / 36, 4 / 36, 1 / 36, 4 / 36, 1 / 36, 4 / 36, 1 / 36])
+    else:
+        m = level.sizes
+        d = 1.0 / (m * (m + 5.0))
+
+        def fill(indices, data):
+            ptr = _indptr(1 + 2 * m)[:-1]
+            indices[ptr] = nv + ne + np.arange(nf)
+            data[ptr] = m / (m + 5.0)
+            pos = ptr[t.he_face] + 1 + 2 * (np.arange(len(t.he_face)) - level.offsets[t.he_face])
+            indices[pos], indices[pos + 1] = ep, t.he_origin
+            data[pos], data[pos + 1] = 4.0 * d[t.he_face], d[t.he_face]
+        faces = (1 + 2 * m, fill)
+    return _csr([vertices, edges, faces], n_points)
 
 
 class CatmullClark:
@@ -214,30 +432,52 @@ class CatmullClark:
         if n_out > MAX_REFINED_FACES:
             raise ConfigError(
                 f"{levels} levels on {topo.n_faces} faces would make {n_out} faces (limit {MAX_REFINED_FACES})")
-        _check_manifold(topo)
+        base = _base_level(topo, offsets)
+        _check_manifold(base)
         self.levels = levels
         self.boundary = boundary
         self.n_control = topo.n_vertices
 
-        base = (topo, corners, offsets)
-        refine = sp.identity(topo.n_vertices, format="csr")
-        for _ in range(max(levels, 1)):
-            step, corners, offsets = _step(topo, offsets, boundary)
-            refine = step @ refine
-            topo = Topology(corners, offsets, step.shape[0])
-        limit = _limit_stencil(topo, boundary) @ refine
+        level, refine = base, None  # composed right to left: one sparse product per level, then the limit
+        for k in range(max(levels, 1)):
+            if k:
+                level = _refined_level(level)
+            layout = _VertexLayout(level, boundary, generic=not level.quads)
+            step = _step(level, layout)
+            refine = step if refine is None else step @ refine
+        if not level.quads:
+            layout = _VertexLayout(level, boundary, generic=False)
+        # level 0: the limit of the level-1 vertex points (they come first), a map of the control vertices
+        limit = _limit(level, layout, vertex_points_only=levels == 0) @ refine
+        self._coarse: Topology | None = None
         if levels == 0:
-            # Level-0 limit = limit of the level-1 vertex points (they come first).
-            limit = limit[: self.n_control]
             refine = sp.identity(self.n_control, format="csr")
-            topo, corners, offsets = base
-        self.refine_matrix: sp.csr_matrix = sp.csr_matrix(refine)
-        self.limit_matrix: sp.csr_matrix = sp.csr_matrix(limit)
-        self.topology: Topology = topo
-        self._template = PolyMesh(np.zeros((topo.n_vertices, 3)), corners, offsets, _topology=topo)
-        self.topology_key: tuple = self._template.topology_key  # of the refined faces, shared by every output
-        self.corners: np.ndarray = self._template.corners
-        self.offsets: np.ndarray = self._template.offsets
+            self.topology = topo
+            corners, offsets = np.array(corners, dtype=np.int64), np.array(offsets, dtype=np.int64)
+        else:
+            self._coarse = level.topo  # the refined topology follows from it, when asked for
+            corners, offsets = _refined_faces(level.topo)
+        corners.setflags(write=False)
+        offsets.setflags(write=False)
+        self.refine_matrix: sp.csr_matrix = refine
+        self.limit_matrix: sp.csr_matrix = limit
+        self.corners: np.ndarray = corners
+        self.offsets: np.ndarray = offsets
+
+    @functools.cached_property
+    def topology(self) -> Topology:
+        """Topology of the refined faces, derived in closed form on first use (the matrices never need it)."""
+        return _refined_topology(self._coarse)
+
+    @functools.cached_property
+    def _template(self) -> PolyMesh:
+        return PolyMesh(np.zeros((self.n_vertices, 3)), self.corners, self.offsets,
+                        _topology=self.__dict__.get("topology"))
+
+    @functools.cached_property
+    def topology_key(self) -> tuple:
+        """:attr:`PolyMesh.topology_key` of the refined faces, shared by every output once asked for."""
+        return self._template.topology_key
 
     @property
     def n_vertices(self) -> int:
@@ -255,15 +495,20 @@ class CatmullClark:
 
     @property
     def nbytes(self) -> int:
-        """Approximate memory held by the matrices and the refined faces."""
+        """Approximate memory held by the matrices, the refined faces and the topology they derive from."""
         m = (self.refine_matrix, self.limit_matrix)
-        return sum(x.data.nbytes + x.indices.nbytes + x.indptr.nbytes for x in m) + 2 * self.corners.nbytes
+        held = vars(self._coarse).values() if self._coarse is not None else ()
+        return (sum(x.data.nbytes + x.indices.nbytes + x.indptr.nbytes for x in m) + 2 * self.corners.nbytes
+                + sum(a.nbytes for a in held if isinstance(a, np.ndarray)))
 
     def _apply(self, matrix: sp.csr_matrix, vertices: np.ndarray) -> PolyMesh:
         v = np.asarray(vertices, dtype=np.float64)
         if v.shape != (self.n_control, 3):
             raise InputError(f"expected ({self.n_control}, 3) control vertices, got shape {v.shape}")
-        return self._template.with_vertices(matrix @ v)
+        # the refined topology and key are shared once derived; before that an output derives its own on demand
+        mesh = PolyMesh(matrix @ v, self.corners, self.offsets, _topology=self.__dict__.get("topology"))
+        mesh._key = self.__dict__.get("topology_key")
+        return mesh
 
     def refine(self, vertices: np.ndarray) -> PolyMesh:
         """The mesh after ``levels`` refinement steps of control vertices ``vertices``."""

@@ -3,6 +3,9 @@
 Half-edge ``h`` is corner ``h`` of the corner list: it runs from ``corners[h]`` to the next corner of
 the same face. Edges are numbered in order of their first half-edge (so edge order is deterministic:
 it follows face order, then corner order). ``-1`` marks "none" (boundary twin, boundary edge face).
+
+Twins come from one sort of the undirected edge keys; everything else is linear. Connectivity whose
+twins are known in closed form (a Catmull-Clark refinement) skips the sort: :meth:`Topology.from_twins`.
 """
 
 from __future__ import annotations
@@ -18,48 +21,72 @@ class Topology:
     """Connectivity arrays of a polygon mesh (read-only after construction)."""
 
     def __init__(self, corners: np.ndarray, offsets: np.ndarray, n_vertices: int):
-        corners = np.asarray(corners, dtype=np.int64)
-        offsets = np.asarray(offsets, dtype=np.int64)
-        n_he = corners.size
-        sizes = np.diff(offsets)
-        self.n_vertices = int(n_vertices)
-        self.n_faces = len(sizes)
-        self.he_face = np.repeat(np.arange(self.n_faces), sizes)
-        local = np.arange(n_he) - offsets[self.he_face]
-        self.he_next = offsets[self.he_face] + (local + 1) % sizes[self.he_face]
-        self.he_prev = offsets[self.he_face] + (local - 1) % sizes[self.he_face]
-        self.he_origin = corners
-        self.he_dest = corners[self.he_next]
+        self._set_faces(corners, offsets, n_vertices)
         if np.any(self.he_origin == self.he_dest):
             raise TopologyError("a face repeats a vertex on consecutive corners")
-
+        # Twins: sort the half-edges by undirected key; an edge is a run of one or two equal keys.
         n = np.int64(max(n_vertices, 1))
-        directed = self.he_origin * n + self.he_dest
-        order = np.argsort(directed, kind="stable")
-        sorted_keys = directed[order]
-        if np.any(sorted_keys[1:] == sorted_keys[:-1]):
-            raise TopologyError(
-                "an edge is used twice in the same direction (non-manifold or inconsistently oriented faces)")
-        reverse = self.he_dest * n + self.he_origin
-        pos = np.searchsorted(sorted_keys, reverse)
-        pos_c = np.minimum(pos, n_he - 1)
-        found = (pos < n_he) & (sorted_keys[pos_c] == reverse)
-        self.he_twin = np.where(found, order[pos_c], -1)
-
         lo = np.minimum(self.he_origin, self.he_dest)
         hi = np.maximum(self.he_origin, self.he_dest)
         undirected = lo * n + hi
-        _, first, inverse = np.unique(undirected, return_index=True, return_inverse=True)
-        rank = np.empty(len(first), dtype=np.int64)
-        rank[np.argsort(first, kind="stable")] = np.arange(len(first))
-        self.he_edge = rank[inverse.ravel()]
-        self.n_edges = len(first)
-        self.edge_halfedge = np.empty(self.n_edges, dtype=np.int64)
-        self.edge_halfedge[self.he_edge[::-1]] = np.arange(n_he)[::-1]
+        order = np.argsort(undirected)
+        key = undirected[order]
+        pair = np.flatnonzero(key[1:] == key[:-1])
+        first, second = order[pair], order[pair + 1]
+        if (np.any(pair[1:] == pair[:-1] + 1)  # three or more half-edges on one edge
+                or np.any(self.he_origin[first] == self.he_origin[second])):
+            raise TopologyError(
+                "an edge is used twice in the same direction (non-manifold or inconsistently oriented faces)")
+        twin = np.full(len(self.he_origin), -1, dtype=np.int64)
+        twin[first] = second
+        twin[second] = first
+        self._set_edges(twin)
+
+    @classmethod
+    def from_twins(cls, corners: np.ndarray, offsets: np.ndarray, n_vertices: int, he_twin: np.ndarray) -> Topology:
+        """The topology of faces whose twin half-edges are already known (``-1`` on the boundary).
+
+        No sorting and no checks: for connectivity derived in closed form from a valid topology
+        (Catmull-Clark refinement), where it gives the same arrays as the constructor.
+        """
+        self = cls.__new__(cls)
+        self._set_faces(corners, offsets, n_vertices)
+        self._set_edges(np.asarray(he_twin, dtype=np.int64))
+        return self
+
+    def _set_faces(self, corners: np.ndarray, offsets: np.ndarray, n_vertices: int) -> None:
+        corners = np.asarray(corners, dtype=np.int64)
+        offsets = np.asarray(offsets, dtype=np.int64)
+        sizes = np.diff(offsets)
+        self.n_vertices = int(n_vertices)
+        self.n_faces = len(sizes)
+        if corners.size == 4 * self.n_faces and np.all(sizes == 4):  # all quads (any refined mesh)
+            h = np.arange(corners.size)
+            self.he_face = h >> 2
+            self.he_next = (h & -4) | ((h + 1) & 3)
+            self.he_prev = (h & -4) | ((h + 3) & 3)
+        else:
+            self.he_face = np.repeat(np.arange(self.n_faces), sizes)
+            start = offsets[:-1][self.he_face]
+            size = sizes[self.he_face]
+            local = np.arange(corners.size) - start
+            self.he_next = start + (local + 1) % size
+            self.he_prev = start + (local - 1) % size
+        self.he_origin = corners
+        self.he_dest = corners[self.he_next]
+
+    def _set_edges(self, twin: np.ndarray) -> None:
+        """Edges from twins, numbered by first half-edge: an edge starts at ``h`` unless ``twin(h) < h``."""
+        self.he_twin = twin
+        h = np.arange(len(twin))
+        starts = (twin < 0) | (twin > h)
+        self.edge_halfedge = np.flatnonzero(starts)
+        self.n_edges = len(self.edge_halfedge)
+        self.he_edge = (np.cumsum(starts) - 1)[np.where(starts, h, twin)]
         h0 = self.edge_halfedge
         self.edges = np.stack([self.he_origin[h0], self.he_dest[h0]], axis=1)
-        t0 = self.he_twin[h0]
-        self.edge_faces = np.stack([self.he_face[h0], np.where(t0 >= 0, self.he_face[np.maximum(t0, 0)], -1)], axis=1)
+        t0 = twin[h0]
+        self.edge_faces = np.stack([self.he_face[h0], np.where(t0 >= 0, self.he_face[t0], -1)], axis=1)
         for a in vars(self).values():
             if isinstance(a, np.ndarray):
                 a.setflags(write=False)
