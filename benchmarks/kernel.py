@@ -4,6 +4,8 @@ Sections are functions ``(quick) -> list[Row]`` registered in ``SECTIONS``; a ne
 adds one function and one entry, and its rows land in the same table. A row is one measurement: how many
 calls per second, and the time of one call (best of several repeats of a timed loop).
 
+* ``ops``: replay of random 8-op genomes on the cube (all seven op kinds), alone and with the level-3 limit
+  evaluation, topology cached or not (goals: under 1 ms cached, under 10 ms uncached).
 * ``subdivision``: Catmull-Clark level 3 with limit positions (:func:`limit_mesh`) on meshes of 6 to 500
   faces. *cached*: a fresh PolyMesh with known connectivity each call (key, LRU hit, one sparse product,
   the output PolyMesh); *uncached*: the cache cleared before each call (the control mesh's topology and
@@ -152,7 +154,64 @@ def bench_subdivision(quick: bool) -> list[Row]:
     return rows
 
 
-SECTIONS: dict[str, Callable[[bool], list[Row]]] = {"subdivision": bench_subdivision}
+def random_genomes(count: int, length: int, seed: int = 0) -> list[tuple]:
+    """Seeded valid genomes of exactly ``length`` random ops (all seven kinds) on the unit cube."""
+    from gsr_cad.errors import OpError
+    from gsr_cad.ops import mesh as mesh_ops
+
+    rng = np.random.default_rng(seed)
+    cube = unit_cube()
+    out = []
+    while len(out) < count:
+        state, genome = cube, []
+        for _ in range(50 * length):
+            op = mesh_ops.random_op(rng, state, cube.diagonal)
+            try:
+                state = op.apply(state)
+            except OpError:
+                continue
+            genome.append(op)
+            if len(genome) == length:
+                out.append(tuple(genome))
+                break
+    return out
+
+
+def bench_ops(quick: bool) -> list[Row]:
+    """Replay of 8-op genomes on the cube, alone and followed by the level-3 limit evaluation.
+
+    *replay*: ops per second over 32 random genomes; *replay + limit L3 cached*: the GA's case when the
+    genome's connectivity was met before (topology cache hit); *uncached*: a connectivity never seen.
+    """
+    from gsr_cad.genome import replay
+
+    genomes = random_genomes(8 if quick else 32, 8)
+    cube = unit_cube()
+    budget = 0.1 if quick else 1.0
+    faces = int(np.median([replay(cube, g).n_faces for g in genomes]))
+    cycle = iter(range(1 << 62))
+
+    def one_replay():
+        return replay(cube, genomes[next(cycle) % len(genomes)])
+
+    def cached():
+        return subdivision.limit_mesh(one_replay(), 3)
+
+    def uncached():
+        subdivision.clear_cache()
+        return subdivision.limit_mesh(one_replay(), 3)
+
+    per_genome = timeit(one_replay, budget)
+    note = f"median control mesh {faces} faces"
+    return [
+        Row("ops", "8-op genome replay (per op)", faces, "op replay", per_genome / 8, note),
+        Row("ops", "8-op genome replay", faces, "genome replay", per_genome, note),
+        Row("ops", "8-op genome", faces, "replay + limit L3 cached", timeit(cached, budget), note),
+        Row("ops", "8-op genome", faces, "replay + limit L3 uncached", timeit(uncached, budget, repeats=3), note),
+    ]
+
+
+SECTIONS: dict[str, Callable[[bool], list[Row]]] = {"subdivision": bench_subdivision, "ops": bench_ops}
 
 
 # --- output -------------------------------------------------------------------------------------------
