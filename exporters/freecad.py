@@ -34,6 +34,24 @@ from .blender import SurfaceModel, same_mesh, surface_model, triangle_faces
 
 SAMPLES_PER_SPAN = 16
 
+# The end of every generated macro: run build(), print a JSON summary, exit 1 on failure (freecadcmd exits 0
+# on an uncaught exception) but let the GUI show the traceback.
+_MACRO_TAIL = '''
+
+def _path_from_environment():
+    args = [a for a in os.environ.get("GSR_ARGS", "").split(os.pathsep) if a]
+    return args[0] if args else os.environ.get("GSR_FCSTD")
+
+
+try:
+    print("\\n" + json.dumps(summary(build(_path_from_environment()))))
+except Exception as exc:
+    if App.GuiUp:
+        raise
+    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
+    raise SystemExit(1)
+'''
+
 _MACRO = '''"""{title}
 
 Rebuilt by gsr_cad from its modelling history: the group "History" holds one Part::Polygon per step (the
@@ -102,21 +120,7 @@ def summary(doc):
     return {{"document": doc.Name, "file": doc.FileName or None, "steps": len(STEPS),
             "labels": [label for label, _, _ in STEPS], "degree": DEGREE, "poles": len(POLES),
             "curve_length": curve.Length}}
-
-
-def _path_from_environment():
-    args = [a for a in os.environ.get("GSR_ARGS", "").split(os.pathsep) if a]
-    return args[0] if args else os.environ.get("GSR_FCSTD")
-
-
-try:
-    print("\\n" + json.dumps(summary(build(_path_from_environment()))))
-except Exception as exc:
-    if App.GuiUp:
-        raise
-    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
-    raise SystemExit(1)
-'''
+''' + _MACRO_TAIL
 
 _CURVE_DUMP = '''
 def dump_curve(edge, params):
@@ -367,21 +371,7 @@ def summary(doc):
             "labels": [label for label, _, _, _ in STEPS], "patches": len(PATCHES), "shape": shape.ShapeType,
             "valid": shape.isValid(), "volume": shape.Volume if shape.ShapeType == "Solid" else None,
             "area": shape.Area}}
-
-
-def _path_from_environment():
-    args = [a for a in os.environ.get("GSR_ARGS", "").split(os.pathsep) if a]
-    return args[0] if args else os.environ.get("GSR_FCSTD")
-
-
-try:
-    print("\\n" + json.dumps(summary(build(_path_from_environment()))))
-except Exception as exc:
-    if App.GuiUp:
-        raise
-    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
-    raise SystemExit(1)
-'''
+''' + _MACRO_TAIL
 
 _SURFACE_READER = '''import json
 import os

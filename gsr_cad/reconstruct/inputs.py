@@ -18,12 +18,10 @@ from ..errors import InputError
 CURVE_SUFFIXES = (".csv", ".txt", ".xy", ".npy")
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class CurveTarget:
-    """Ordered 2D target points with their bounding box and scale."""
+class _PointSet:
+    """Bounding box, diagonal and KD-tree of a target's ``points`` (computed once, on first use)."""
 
     points: np.ndarray
-    name: str = "points"
 
     @functools.cached_property
     def bbox(self) -> np.ndarray:
@@ -36,6 +34,14 @@ class CurveTarget:
     @functools.cached_property
     def kdtree(self) -> cKDTree:
         return cKDTree(self.points)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CurveTarget(_PointSet):
+    """Ordered 2D target points with their bounding box and scale."""
+
+    points: np.ndarray
+    name: str = "points"
 
     def __len__(self) -> int:
         return len(self.points)
@@ -131,7 +137,7 @@ CLOUD_SAMPLING_NEIGHBOURS = 6
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class SurfaceTarget:
+class SurfaceTarget(_PointSet):
     """A surface to reconstruct: 3D points and, for a mesh, its faces as triangles (polygons fan-split).
 
     ``faces`` is ``(m, 3)`` vertex indices into ``points`` or None for a point cloud. The KD-tree, the
@@ -155,18 +161,6 @@ class SurfaceTarget:
     def kind(self) -> str:
         """"mesh" or "cloud"."""
         return "cloud" if self.faces is None else "mesh"
-
-    @functools.cached_property
-    def bbox(self) -> np.ndarray:
-        return np.stack([self.points.min(axis=0), self.points.max(axis=0)])
-
-    @property
-    def diagonal(self) -> float:
-        return float(np.linalg.norm(self.bbox[1] - self.bbox[0]))
-
-    @functools.cached_property
-    def kdtree(self) -> cKDTree:
-        return cKDTree(self.points)
 
     @functools.cached_property
     def triangle_set(self):
