@@ -44,6 +44,17 @@ class PolyMesh:
         corners = np.fromiter((i for f in faces for i in f), dtype=np.int64, count=int(sizes.sum()))
         return cls(vertices, corners, offsets)
 
+    @classmethod
+    def _trusted(cls, vertices: np.ndarray, corners: np.ndarray, offsets: np.ndarray, topology=None,
+                 key: tuple | None = None) -> PolyMesh:
+        """A mesh on arrays already read-only, float64 ``(n, 3)`` / int64 and valid (the mesh ops' output,
+        valid by construction): no checks, no copies. ``key``, when given, must be :attr:`topology_key`."""
+        mesh = object.__new__(cls)
+        mesh.vertices, mesh.corners, mesh.offsets = vertices, corners, offsets
+        mesh._topology = topology
+        mesh._key = key
+        return mesh
+
     def with_vertices(self, vertices: np.ndarray) -> PolyMesh:
         """Same faces, new positions; shares the topology (and its caches) if it was built."""
         mesh = PolyMesh(vertices, self.corners, self.offsets, _topology=self._topology)

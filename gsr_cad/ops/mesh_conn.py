@@ -4,13 +4,18 @@ GA replays apply thousands of short op sequences to small meshes, where dict and
 numpy's per-call overhead. :class:`MeshConn` holds what the ops need (face cycles, the face owning each
 directed edge, edges numbered exactly as :class:`~gsr_cad.geometry.topology.Topology` numbers them) and is
 kept in a small LRU cache keyed by :attr:`PolyMesh.topology_key`, so ops that only move vertices
-(V, F, S) and repeated prefixes never rebuild it.
+(V, F, S) and repeated prefixes never rebuild it. :class:`MeshView` keeps, for recently seen meshes, the
+plain-float positions and the face Newell vectors computed so far, so that the next op of a replay neither
+converts the positions again nor recomputes the faces it did not change.
 """
 
 from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from itertools import accumulate, chain
+
+import numpy as np
 
 from ..errors import TopologyError
 from ..geometry.polymesh import PolyMesh
@@ -137,6 +142,25 @@ _CACHE = _LRU(maxsize=1024)
 serves replays; the rest is reuse across genomes that share prefixes."""
 
 
+def cached_connectivity(key: tuple) -> MeshConn | None:
+    """The cached :class:`MeshConn` of a :attr:`PolyMesh.topology_key`, or None."""
+    return _CACHE.get(key)
+
+
+def cache_connectivity(key: tuple, conn: MeshConn) -> None:
+    """Remember ``conn`` as the connectivity of topology key ``key``."""
+    _CACHE.put(key, conn)
+
+
+def face_arrays(n_vertices: int, faces: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Read-only ``(corners, offsets)`` of ``faces`` and the :attr:`PolyMesh.topology_key` they give."""
+    offsets = np.fromiter(accumulate(map(len, faces), initial=0), np.int64, len(faces) + 1)
+    corners = np.fromiter(chain.from_iterable(faces), np.int64, int(offsets[-1]))
+    corners.setflags(write=False)
+    offsets.setflags(write=False)
+    return corners, offsets, (n_vertices, offsets.tobytes(), corners.tobytes())
+
+
 def connectivity(mesh: PolyMesh) -> MeshConn:
     """The (cached) :class:`MeshConn` of ``mesh``; raises TopologyError for a non-manifold mesh."""
     key = mesh.topology_key
@@ -147,19 +171,64 @@ def connectivity(mesh: PolyMesh) -> MeshConn:
     return conn
 
 
-def make_mesh(vertices: list[list[float]], faces: list[tuple[int, ...]], conn: MeshConn | None = None) -> PolyMesh:
-    """A PolyMesh from plain lists; ``conn`` (already built for ``faces``) is cached for the next op."""
-    sizes = [len(f) for f in faces]
-    offsets = [0]
-    for s in sizes:
-        offsets.append(offsets[-1] + s)
-    corners = [c for f in faces for c in f]
-    mesh = PolyMesh(vertices, corners, offsets)
-    if conn is not None:
-        _CACHE.put(mesh.topology_key, conn)
-    return mesh
+class MeshView:
+    """Plain-Python companion of one mesh for the ops: its vertex rows ``P`` as lists of floats (never
+    mutated: ops copy the outer list and replace rows), ``newell[f]`` the Newell vector of face ``f`` as
+    :func:`~gsr_cad.ops.mesh_kernel.face_newell` computes it on ``P`` (None until needed), its connectivity
+    and ``bounds`` (``(xmin, ymin, zmin, xmax, ymax, zmax)`` of ``P``, None until needed).
+
+    The mesh is immutable, so these never go stale; an op builds the view of its result from its input's
+    (faces it did not change and whose vertices did not move keep their Newell vector).
+    """
+
+    __slots__ = ("mesh", "P", "newell", "conn", "bounds")
+
+    def __init__(self, mesh: PolyMesh, P: list[list[float]], newell: list, conn: MeshConn,
+                 bounds: tuple[float, ...] | None = None):
+        self.mesh, self.P, self.newell, self.conn, self.bounds = mesh, P, newell, conn, bounds
+
+
+class _Views:
+    """The views of the last ``maxsize`` meshes, by identity (each entry holds its mesh, so ids stay unique)."""
+
+    def __init__(self, maxsize: int):
+        self.maxsize = maxsize
+        self._data: dict[int, MeshView] = {}
+        self._lock = threading.Lock()
+
+    def get(self, mesh: PolyMesh) -> MeshView | None:
+        view = self._data.get(id(mesh))
+        return view if view is not None and view.mesh is mesh else None
+
+    def put(self, view: MeshView) -> None:
+        with self._lock:
+            self._data[id(view.mesh)] = view
+            if len(self._data) > self.maxsize:
+                del self._data[next(iter(self._data))]
+
+    def clear(self) -> None:
+        with self._lock:
+            self._data.clear()
+
+
+_VIEWS = _Views(maxsize=256)
+
+
+def mesh_view(mesh: PolyMesh) -> MeshView:
+    """The :class:`MeshView` of ``mesh`` (built and remembered on first use)."""
+    view = _VIEWS.get(mesh)
+    if view is None:
+        view = MeshView(mesh, mesh.vertices.tolist(), [None] * mesh.n_faces, connectivity(mesh))
+        _VIEWS.put(view)
+    return view
+
+
+def remember_view(view: MeshView) -> None:
+    """Keep ``view`` (an op's result) for the next op on its mesh."""
+    _VIEWS.put(view)
 
 
 def clear_cache() -> None:
-    """Forget every cached connectivity (tests, memory)."""
+    """Forget every cached connectivity and mesh view (tests, memory)."""
     _CACHE.clear()
+    _VIEWS.clear()

@@ -7,6 +7,11 @@ touched face keeps edges of at least ``MIN_EDGE_REL`` times the mesh diagonal, a
 stays star-shaped about its centroid (no bow-tie or folded polygon), keeps the orientation of the face
 it came from (no flip), and meets each neighbour at an opening angle above ``FOLD_DEG`` (no fin or
 folded-back sheet). Intersections between faces that share no edge are not looked for.
+
+Replays run these thousands of times, so each op works on the :class:`~gsr_cad.ops.mesh_conn.MeshView` of
+its input (plain-float positions, the Newell vectors already known, the connectivity) and hands one on to
+the next op; every number that decides validity or geometry is computed with exactly the same float
+operations, in the same order, as a fresh computation would be.
 """
 
 from __future__ import annotations
@@ -14,9 +19,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
+import numpy as np
+
 from ..errors import OpError
 from ..geometry.polymesh import PolyMesh
-from .mesh_conn import MeshConn, connectivity, make_mesh
+from .mesh_conn import (MeshConn, MeshView, cache_connectivity, cached_connectivity, face_arrays, mesh_view,
+                        remember_view)
 
 MIN_EDGE_REL = 1e-4
 """Shortest allowed edge, as a fraction of the mesh's bounding-box diagonal."""
@@ -76,9 +84,35 @@ def _newell(P: list[list[float]], cyc: Sequence[int]) -> Vec:
     return (nx, ny, nz)
 
 
-def _diagonal(P: list[list[float]]) -> float:
+def _bounds(P: Sequence[Sequence[float]]) -> tuple[float, ...]:
+    """``(xmin, ymin, zmin, xmax, ymax, zmax)`` of the points."""
     xs, ys, zs = zip(*P)
-    return math.sqrt((max(xs) - min(xs)) ** 2 + (max(ys) - min(ys)) ** 2 + (max(zs) - min(zs)) ** 2)
+    return (min(xs), min(ys), min(zs), max(xs), max(ys), max(zs))
+
+
+def _extended(bounds: tuple[float, ...] | None, pts: list[list[float]]) -> tuple[float, ...] | None:
+    """Bounds after appending ``pts``: equal to :func:`_bounds` of the longer list (min and max are exact)."""
+    if bounds is None:
+        return None
+    xs, ys, zs = zip(*pts)
+    return (min(bounds[0], *xs), min(bounds[1], *ys), min(bounds[2], *zs),
+            max(bounds[3], *xs), max(bounds[4], *ys), max(bounds[5], *zs))
+
+
+def _diagonal(view: MeshView) -> float:
+    """Bounding-box diagonal of the view's positions (bounds memoised in the view)."""
+    b = view.bounds
+    if b is None:
+        b = view.bounds = _bounds(view.P)
+    return math.sqrt((b[3] - b[0]) ** 2 + (b[4] - b[1]) ** 2 + (b[5] - b[2]) ** 2)
+
+
+def _face_newell(view: MeshView, f: int) -> Vec:
+    """Newell vector of face ``f`` of the view's mesh, as :func:`_newell` computes it (memoised in the view)."""
+    n = view.newell[f]
+    if n is None:
+        n = view.newell[f] = _newell(view.P, view.conn.faces[f])
+    return n
 
 
 def face_normal(P: list[list[float]], cyc: Sequence[int]) -> Vec | None:
@@ -89,15 +123,18 @@ def face_normal(P: list[list[float]], cyc: Sequence[int]) -> Vec | None:
 # --- validity ------------------------------------------------------------------------------------------
 
 def _check(what: str, P: list[list[float]], faces: list[tuple[int, ...]], conn: MeshConn,
-           touched: Iterable[int], refs: dict[int, Vec | None], diag: float) -> None:
+           touched: Iterable[int], refs: dict[int, Vec | None], diag: float, newell: list) -> None:
     """Raise OpError unless every touched face is sound (see the module docstring).
 
-    ``refs`` maps a face to the unit normal it must not flip against (the face it came from). The
-    arithmetic is written out on floats: this runs once per op in every GA replay.
+    ``refs`` maps a face to the unit normal it must not flip against (the face it came from). ``newell``
+    is the new mesh's list of Newell vectors: set entries of untouched faces must be right (their cycle and
+    vertices did not change); the touched faces' entries are computed here, neighbours' filled in when
+    missing. The arithmetic is written out on floats: this runs once per op in every GA replay.
     """
     min_len2 = (MIN_EDGE_REL * diag) ** 2
     min_area2 = 2.0 * MIN_AREA_REL * diag * diag
-    newell: dict[int, Vec] = {}
+    min_area4 = min_area2 * min_area2
+    length: dict[int, float] = {}
     touched = list(touched)
     for f in touched:
         pts = [P[c] for c in faces[f]]
@@ -116,9 +153,10 @@ def _check(what: str, P: list[list[float]], faces: list[tuple[int, ...]], conn: 
                 raise OpError(f"{what}: face {f} would get a (nearly) zero-length edge")
             px, py, pz = qx, qy, qz
         n2 = nx * nx + ny * ny + nz * nz
-        if n2 < min_area2 * min_area2:
+        if n2 < min_area4:
             raise OpError(f"{what}: face {f} would have (nearly) zero area")
         newell[f] = (nx, ny, nz)
+        length[f] = math.sqrt(n2)
         # centroid fan: each triangle (c, p, q) must turn the same way as the face, by a margin
         fan_min = FAN_MIN_FRAC * n2 / k
         cx, cy, cz = sx / k, sy / k, sz / k
@@ -135,22 +173,20 @@ def _check(what: str, P: list[list[float]], faces: list[tuple[int, ...]], conn: 
     half = conn.half
     for f in touched:
         cyc = faces[f]
-        nf = newell[f]
-        lf = math.sqrt(nf[0] * nf[0] + nf[1] * nf[1] + nf[2] * nf[2])
+        fx, fy, fz = newell[f]
+        threshold = -_FOLD_COS * length[f]
         for u, v in zip(cyc, cyc[1:] + cyc[:1]):
             g = half.get((v, u), -1)
             if g < 0:
                 continue
-            ng = newell.get(g)
+            ng = newell[g]
             if ng is None:
                 ng = newell[g] = _newell(P, faces[g])
-            dot = nf[0] * ng[0] + nf[1] * ng[1] + nf[2] * ng[2]
-            if dot < -_FOLD_COS * lf * math.sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2]):
+            lg = length.get(g)
+            if lg is None:
+                lg = length[g] = math.sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2])
+            if fx * ng[0] + fy * ng[1] + fz * ng[2] < threshold * lg:
                 raise OpError(f"{what}: faces {f} and {g} would fold onto each other")
-
-
-def _vertex_list(mesh: PolyMesh) -> list[list[float]]:
-    return mesh.vertices.tolist()
 
 
 def _index(value: int, count: int, what: str, kind: str) -> int:
@@ -159,9 +195,47 @@ def _index(value: int, count: int, what: str, kind: str) -> int:
     return value
 
 
-def _moved(mesh: PolyMesh, P: list[list[float]]) -> PolyMesh:
-    """Same connectivity, new positions; shares the numpy topology only when it was already built."""
-    return PolyMesh(P, mesh.corners, mesh.offsets, _topology=mesh._topology)
+def _moved(view: MeshView, P: list[list[float]], moved: Iterable[int], newell: list) -> PolyMesh:
+    """The input mesh with the ``moved`` rows of ``P``: same connectivity, topology and key."""
+    mesh = view.mesh
+    vertices = mesh.vertices.copy()
+    for c in moved:
+        vertices[c] = P[c]
+    vertices.setflags(write=False)
+    out = PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.topology_key)
+    remember_view(MeshView(out, P, newell, view.conn, None))
+    return out
+
+
+def _finish(what: str, view: MeshView, P: list[list[float]], faces: list[tuple[int, ...]], touched: list[int],
+            refs: dict[int, Vec | None], diag: float, newell: list, moved: Iterable[int] = (),
+            bounds: tuple[float, ...] | None = None) -> PolyMesh:
+    """Check and build the result of an op that changed the ``touched`` faces (and appended vertices).
+
+    The connectivity comes from the cache when this face list was met before, else the input's is
+    patched. Op results need no validation: every face keeps at least three corners, all on vertices of
+    ``P``, by construction.
+    """
+    corners, offsets, key = face_arrays(len(P), faces)
+    conn = cached_connectivity(key)
+    fresh = conn is None
+    if fresh:
+        conn = MeshConn.updated(view.conn, faces, touched, len(P))
+    _check(what, P, faces, conn, touched, refs, diag, newell)
+    if fresh:
+        cache_connectivity(key, conn)
+    old = view.mesh.vertices
+    n = len(old)
+    vertices = np.empty((len(P), 3))
+    vertices[:n] = old
+    if len(P) > n:
+        vertices[n:] = P[n:]
+    for c in moved:
+        vertices[c] = P[c]
+    vertices.setflags(write=False)
+    out = PolyMesh._trusted(vertices, corners, offsets, None, key)
+    remember_view(MeshView(out, P, newell, conn, bounds))
+    return out
 
 
 # --- V, F, S: vertex moves -----------------------------------------------------------------------------
@@ -169,46 +243,63 @@ def _moved(mesh: PolyMesh, P: list[list[float]]) -> PolyMesh:
 def translate_vertex(mesh: PolyMesh, vertex: int, delta: Sequence[float]) -> PolyMesh:
     """V: move one vertex by ``delta``."""
     what = f"translate_vertex {vertex}"
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     _index(vertex, mesh.n_vertices, what, "vertex")
     around = conn.vertex_faces(vertex)
     if not around:
         raise OpError(f"{what}: vertex {vertex} is on no face")
-    P = _vertex_list(mesh)
-    diag = _diagonal(P)
-    refs = {f: face_normal(P, conn.faces[f]) for f in around}
+    diag = _diagonal(view)
+    refs = {f: _unit(_face_newell(view, f)) for f in around}
+    P = list(view.P)
     p = P[vertex]
     P[vertex] = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]]
-    _check(what, P, conn.faces, conn, around, refs, diag)
-    return _moved(mesh, P)
+    newell = list(view.newell)
+    for f in around:
+        newell[f] = None
+    _check(what, P, conn.faces, conn, around, refs, diag, newell)
+    return _moved(view, P, (vertex,), newell)
 
 
 def translate_face(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
     """F: move a face's vertices by ``distance`` along its unit Newell normal."""
     what = f"translate_face {face}"
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
-    P = _vertex_list(mesh)
-    n = face_normal(P, cyc)
+    n = _unit(_face_newell(view, face))
     if n is None:
         raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(P)
+    diag = _diagonal(view)
     around = sorted({g for c in cyc for g in conn.vertex_faces(c)})
-    refs = {g: face_normal(P, conn.faces[g]) for g in around}
+    refs = {g: _unit(_face_newell(view, g)) for g in around}
+    P = list(view.P)
     dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
     for c in cyc:
         p = P[c]
         P[c] = [p[0] + dx, p[1] + dy, p[2] + dz]
-    _check(what, P, conn.faces, conn, around, refs, diag)
-    return _moved(mesh, P)
+    newell = list(view.newell)
+    for g in around:
+        newell[g] = None
+    _check(what, P, conn.faces, conn, around, refs, diag, newell)
+    return _moved(view, P, cyc, newell)
 
 
 def scale(mesh: PolyMesh, factor: float) -> PolyMesh:
-    """S: scale every vertex by ``factor > 0`` about the centre of the bounding box."""
+    """S: scale every vertex by ``factor > 0`` about the centre of the bounding box.
+
+    No face is checked, and none needs to be: scaling by ``factor > 0`` about a point is a similarity, so
+    every edge length and the diagonal change by ``factor``, every Newell vector and area by ``factor**2``
+    without turning, and centroids map to centroids. Each rule of :func:`_check` compares quantities of the
+    same degree (edge**2 with diagonal**2, area**2 with diagonal**4, fan areas with the face area, normal
+    dot products with products of lengths), so the factor cancels: a valid mesh stays valid.
+    """
     if not factor > 0.0:
         raise OpError(f"scale {factor}: the factor must be positive")
     centre = mesh.bbox.mean(axis=0)
-    return _moved(mesh, centre + factor * (mesh.vertices - centre))
+    vertices = centre + factor * (mesh.vertices - centre)
+    vertices.setflags(write=False)
+    return PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.topology_key)
 
 
 def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
@@ -237,19 +328,20 @@ def _cap_and_ring(P: list[list[float]], faces: list[tuple[int, ...]], face: int,
 def extrude(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
     """E: move ``face`` to new vertices ``distance`` along its normal, joined to the old rim by quads."""
     what = f"extrude {face}"
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
-    P = _vertex_list(mesh)
-    n = face_normal(P, cyc)
+    n = _unit(_face_newell(view, face))
     if n is None:
         raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(P)
+    diag = _diagonal(view)
+    P = list(view.P)
     dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
     pts = [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc]
     faces, touched = _cap_and_ring(P, conn.faces, face, pts)
-    new_conn = MeshConn.updated(conn, faces, touched, len(P))
-    _check(what, P, faces, new_conn, touched, {}, diag)
-    return make_mesh(P, faces, new_conn)
+    newell = view.newell + [None] * len(cyc)
+    newell[face] = None
+    return _finish(what, view, P, faces, touched, {}, diag, newell, (), _extended(view.bounds, pts))
 
 
 def inset_points(P: list[list[float]], cyc: Sequence[int], thickness: float, n: Vec,
@@ -281,18 +373,20 @@ def inset(mesh: PolyMesh, face: int, thickness: float) -> PolyMesh:
     what = f"inset {face}"
     if not thickness > 0.0:
         raise OpError(f"{what}: the thickness must be positive")
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
-    P = _vertex_list(mesh)
-    n = face_normal(P, cyc)
+    n = _unit(_face_newell(view, face))
     if n is None:
         raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(P)
-    pts = inset_points(P, cyc, thickness, n, what)
+    diag = _diagonal(view)
+    pts = inset_points(view.P, cyc, thickness, n, what)
+    P = list(view.P)
     faces, touched = _cap_and_ring(P, conn.faces, face, pts)
-    new_conn = MeshConn.updated(conn, faces, touched, len(P))
-    _check(what, P, faces, new_conn, touched, dict.fromkeys(touched, n), diag)
-    return make_mesh(P, faces, new_conn)
+    newell = view.newell + [None] * len(cyc)
+    newell[face] = None
+    return _finish(what, view, P, faces, touched, dict.fromkeys(touched, n), diag, newell, (),
+                   _extended(view.bounds, pts))
 
 
 # --- L: edge loop ----------------------------------------------------------------------------------------
@@ -342,16 +436,17 @@ def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int
 def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     """L: cut the ring of opposite edges through ``edge`` at their midpoints and join the cuts across quads."""
     what = f"edge_loop {edge}"
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     _index(edge, len(conn.edges), what, "edge")
     ring, quads, ends, _ = edge_ring(conn, edge)
     if not quads:
         raise OpError(f"{what}: the edge has no quad to cut across")
-    P = _vertex_list(mesh)
-    diag = _diagonal(P)
+    diag = _diagonal(view)
     faces = list(conn.faces)
-    refs = {f: face_normal(P, faces[f]) for f, _ in quads}
-    refs.update((f, face_normal(P, faces[f])) for f in ends)
+    refs = {f: _unit(_face_newell(view, f)) for f, _ in quads}
+    refs.update((f, _unit(_face_newell(view, f))) for f in ends)
+    P = list(view.P)
     base = len(P)
     mid: dict[tuple[int, int], int] = {}
     for j, e in enumerate(ring):
@@ -383,9 +478,10 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
         faces[f] = tuple(out)
         touched.append(f)
     touched = list(dict.fromkeys(touched))
-    new_conn = MeshConn.updated(conn, faces, touched, len(P))
-    _check(what, P, faces, new_conn, touched, refs, diag)
-    return make_mesh(P, faces, new_conn)
+    newell = view.newell + [None] * (len(faces) - len(conn.faces))
+    for f in touched:
+        newell[f] = None
+    return _finish(what, view, P, faces, touched, refs, diag, newell, (), _extended(view.bounds, P[base:]))
 
 
 # --- B: bevel --------------------------------------------------------------------------------------------
@@ -409,12 +505,13 @@ def _fan(conn: MeshConn, v: int, start: int, what: str) -> list[tuple[int, int, 
             raise OpError(f"{what}: vertex {v} is not manifold")
 
 
-def _bevel_end(P: list[list[float]], faces: list[tuple[int, ...]], fan: list[tuple[int, int, int]],
+def _bevel_end(P: list[list[float]], normals: dict[int, Vec | None], fan: list[tuple[int, int, int]],
                v: int, w: int, offset: float, what: str) -> list[tuple[int, list[float]]]:
     """Boundary points replacing end ``v`` of the bevelled edge ``v-w``, one per other edge at ``v`` in
     fan order, as ``(neighbour, point)``. The two edges next to ``v-w`` get the point at distance
     ``offset`` from the line ``v-w`` in the plane of the two edges (Blender's offset_meet); any further
-    edge gets the point ``offset`` along it (Blender's slide_dist for a terminal edge)."""
+    edge gets the point ``offset`` along it (Blender's slide_dist for a terminal edge). ``normals`` holds
+    the unit normals of the fan's faces."""
     pv = P[v]
     e_dir = _unit(_sub(P[w], pv))
     k = len(fan)
@@ -428,7 +525,7 @@ def _bevel_end(P: list[list[float]], faces: list[tuple[int, ...]], fan: list[tup
         u = (d_vec[0] / length, d_vec[1] / length, d_vec[2] / length)
         if j == 0 or j == k - 2:
             f = fan[0][0] if j == 0 else fan[-1][0]
-            n = face_normal(P, faces[f])
+            n = normals[f]
             prev_dir, next_dir = (u, e_dir) if j == 0 else (e_dir, u)
             # corner (prev, v, next) of face f: (v - prev) x (next - v) must point along its normal
             turn = _dot(_cross((-prev_dir[0], -prev_dir[1], -prev_dir[2]), next_dir), n) if n else 0.0
@@ -448,7 +545,8 @@ def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
     what = f"bevel {edge}"
     if not offset > 0.0:
         raise OpError(f"{what}: the offset must be positive")
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)
+    conn = view.conn
     _index(edge, len(conn.edges), what, "edge")
     a, b = conn.edges[edge]
     f1, f2 = conn.edge_faces(edge)
@@ -460,17 +558,18 @@ def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
         raise OpError(f"{what}: an end vertex has fewer than three edges")
     if {f for f, _, _ in fan_a} & {f for f, _, _ in fan_b} != {f1, f2}:
         raise OpError(f"{what}: a face other than the edge's two holds both its ends")
-    P = _vertex_list(mesh)
-    diag = _diagonal(P)
+    diag = _diagonal(view)
     faces = list(conn.faces)
-    pts_a = _bevel_end(P, faces, fan_a, a, b, offset, what)
-    pts_b = _bevel_end(P, faces, fan_b, b, a, offset, what)
+    normals = {f: _unit(_face_newell(view, f)) for f, _, _ in fan_a + fan_b}
+    pts_a = _bevel_end(view.P, normals, fan_a, a, b, offset, what)
+    pts_b = _bevel_end(view.P, normals, fan_b, b, a, offset, what)
+    P = list(view.P)
     refs: dict[int, Vec] = {}
     vertex_normal = []
     for fan in (fan_a, fan_b):
         acc = [0.0, 0.0, 0.0]
         for f, _, _ in fan:
-            n = face_normal(P, faces[f])
+            n = normals[f]
             if n is None:
                 raise OpError(f"{what}: face {f} has zero area")
             refs[f] = n
@@ -518,6 +617,9 @@ def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
             touched.append(len(faces) - 1)
             if vn is not None:
                 refs[len(faces) - 1] = vn
-    new_conn = MeshConn.updated(conn, faces, touched, len(P))
-    _check(what, P, faces, new_conn, touched, refs, diag)
-    return make_mesh(P, faces, new_conn)
+    # the faces at a or b changed (a face at a or b outside the two fans, only possible at a pinched
+    # vertex, keeps its cycle but not its positions): their Newell vectors are recomputed
+    newell = view.newell + [None] * (len(faces) - len(conn.faces))
+    for f in (*touched, *conn.vertex_faces(a), *conn.vertex_faces(b)):
+        newell[f] = None
+    return _finish(what, view, P, faces, touched, refs, diag, newell, (a, b))
