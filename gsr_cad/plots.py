@@ -273,3 +273,121 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     _draw_genome(ax_genome, result.genome)
     _draw_convergence(ax_conv, result.history, result.interrupted, result.metrics or {})
     return fig
+
+
+# --- surfaces ------------------------------------------------------------------------------------------------
+
+def _limit_distances(control, target, levels: int, boundary: str) -> tuple[Any, np.ndarray, np.ndarray]:
+    """``(limit mesh, its triangles, distance of each limit vertex to the target)``; the distances are all
+    zero when no target is known."""
+    from .geometry.subdivision import get_catmull_clark
+    from .geometry.surface_distance import cloud_distance, triangulate
+
+    cc = get_catmull_clark(control, levels, boundary)
+    limit = cc.limit(control.vertices)
+    tris = triangulate(cc.corners, cc.offsets)
+    if target is None:
+        return limit, tris, np.zeros(limit.n_vertices)
+    if target.triangle_set is not None:
+        return limit, tris, target.triangle_set.closest(limit.vertices).distance
+    return limit, tris, cloud_distance(limit.vertices, target.points, target.sampling_radius, target.kdtree)[0]
+
+
+def _draw_surface(ax, control, limit, tris: np.ndarray, dist: np.ndarray, norm, cmap, title: str) -> None:
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    v = limit.vertices
+    colours = cmap(norm(dist[tris].mean(axis=1)))
+    ax.add_collection3d(Poly3DCollection(v[tris], facecolors=colours, edgecolors="none", linewidths=0, alpha=0.95))
+    edges = control.topology.edges
+    ax.add_collection3d(Line3DCollection(control.vertices[edges], colors="black", linewidths=0.8))
+    ax.scatter(*control.vertices.T, s=4, color="black", depthshade=False)
+    everything = np.vstack([v, control.vertices])
+    lo, hi = everything.min(axis=0), everything.max(axis=0)
+    centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=22, azim=-58)
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=9)
+
+
+def surface_figure(result: Result, target=None, snapshots: Sequence[Any] | None = None, *,
+                   title: str | None = None) -> Figure:
+    """The paper's Figure 5 for one surface result: the best individual's control mesh and limit surface at a
+    few generations and at the end (limit surfaces coloured by distance to the target: red near, blue far,
+    over the target's bounding-box diagonal), above the best and mean fitness per generation.
+
+    ``target`` (a :class:`~gsr_cad.reconstruct.inputs.SurfaceTarget`) and ``snapshots`` (objects with
+    ``generation``, ``cost`` and ``control``) default to those a :func:`reconstruct_surface` result carries;
+    a result read back from ``result.json`` has neither, and shows its final mesh uncoloured.
+    """
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
+
+    if result.kind != "surface" or result.control_mesh is None:
+        raise InputError("surface_report needs a surface result with a control mesh")
+    target = target if target is not None else getattr(result, "target", None)
+    snapshots = list(snapshots if snapshots is not None else getattr(result, "snapshots", []) or [])
+    cfg = result.config or {}
+    levels, boundary = int(cfg.get("levels", 2)), str(cfg.get("boundary", "all"))
+    m = result.metrics or {}
+    final_label = f"result: {m.get('n_control_faces', result.control_mesh.n_faces)} faces, {len(result.genome)} ops"
+    panels = [(f"generation {s.generation}: fitness {_fmt(float(s.cost))}", s.control) for s in snapshots[-4:]]
+    panels.append((final_label, result.control_mesh))
+    drawn = [(label, control, *_limit_distances(control, target, levels, boundary)) for label, control in panels]
+    diag = float(target.diagonal) if target is not None else 1.0
+    vmax = max(float(d.max()) for *_, d in drawn) / diag
+    norm = Normalize(0.0, vmax if vmax > 0 else 1e-12)
+    cmap = colormaps["turbo_r"]
+
+    n = len(drawn)
+    fig = Figure(figsize=(max(3.2 * n, 8.0), 7.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    gs = fig.add_gridspec(2, n + 1, width_ratios=[1] * n + [0.06], height_ratios=[1.25, 1.0])
+    for i, (label, control, limit, tris, dist) in enumerate(drawn):
+        _draw_surface(fig.add_subplot(gs[0, i], projection="3d"), control, limit, tris, dist / diag, norm, cmap, label)
+    if target is not None:
+        from matplotlib.cm import ScalarMappable
+
+        cbar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=fig.add_subplot(gs[0, n]))
+        cbar.set_label("distance to target / bbox diagonal", fontsize=8)
+        cbar.ax.tick_params(labelsize=7)
+    ax_conv = fig.add_subplot(gs[1, :n])
+    _draw_convergence(ax_conv, result.history, result.interrupted, m)
+    for s in snapshots[-4:]:
+        ax_conv.axvline(s.generation, color="0.6", linewidth=0.8, linestyle=":")
+    target_info = cfg.get("target")
+    name = title or (target_info.get("name") if isinstance(target_info, dict) else None) or "surface"
+    ops = m.get("ops") if isinstance(m.get("ops"), str) else ""
+    fig.suptitle(f"{name}  (Catmull-Clark, level-{levels} limit; ops {run_length(ops) or '-'})\n{_subtitle(result, 110)}",
+                 fontsize=11)
+    return fig
+
+
+def run_length(letters: str) -> str:
+    """Op letters with repeats counted: ``LVVVV`` -> ``L V4``."""
+    out, i = [], 0
+    while i < len(letters):
+        j = i
+        while j < len(letters) and letters[j] == letters[i]:
+            j += 1
+        out.append(letters[i] + (str(j - i) if j - i > 1 else ""))
+        i = j
+    return " ".join(out)
+
+
+def surface_report(result: Result, path: str | os.PathLike[str], target=None, snapshots: Sequence[Any] | None = None,
+                   *, title: str | None = None, dpi: int = 110) -> Path:
+    """Write :func:`surface_figure` to ``path`` atomically (format from its suffix) and return the path."""
+    fig = surface_figure(result, target, snapshots, title=title)
+    target_path = Path(path)
+    fmt = target_path.suffix.lstrip(".").lower() or "png"
+    with atomic_path(target_path) as tmp:
+        fig.savefig(tmp, format=fmt, dpi=dpi)
+    return target_path

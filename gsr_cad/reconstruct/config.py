@@ -139,8 +139,9 @@ class SurfaceConfig:
     perturb_rel: float = 0.02
     max_control_faces: int = 120
     max_target_points: int = 3000
-    polish_rounds: int = 1
-    final_polish_rounds: int = 10
+    polish_rounds: int = 6
+    polish_gain: float = 0.7
+    final_polish_rounds: int = 20
     polish_every: int = 1
     polish_damping: float = 1e-3
     population: int = 100
@@ -169,7 +170,7 @@ class SurfaceConfig:
         base: dict[str, Any] = {}
         if name == "paper":
             base = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
-                        polish_rounds=0, final_polish_rounds=0, threshold=0.0)
+                        polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(overrides) - names)
         if unknown:
@@ -214,6 +215,8 @@ class SurfaceConfig:
             value = getattr(self, field)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
                 raise ConfigError(f"{name_of(field)} must lie in [0, 1], not {value!r}")
+        if not (isinstance(self.polish_gain, (int, float)) and 0.0 < self.polish_gain <= 1.0):
+            raise ConfigError(f"polish-gain must lie in (0, 1], not {self.polish_gain!r}")
         for field in ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
                       "max_seconds"):
             value = getattr(self, field)

@@ -1,0 +1,259 @@
+"""Surface benchmark: ``reconstruct_surface`` with default settings on the paper's examples, mesh and cloud.
+
+Targets (:mod:`gsr_cad.reconstruct.surface_samples`): ``extended`` and ``flattened_extended`` (paper
+Fig. 5), ``inset_extrude`` (Fig. 6 top), random 4-6 op sequences on the cube (Fig. 6 bottom; seeds
+``--random-seeds``) and ``unreachable`` (a ring no cube genome reaches). Each is run twice: on the target
+mesh (the level-2 limit mesh of the true control mesh) and on its point-cloud version (samples on that
+mesh, 1.5 per vertex, away from the vertices).
+
+Columns: mean and max distance of the target points to the result's limit mesh and the paper's mixed
+mean distance, all over the target's bounding-box diagonal; generations, evaluations and seconds of the
+whole run (search + final polish); and whether the true modelling ops were found: "ops" when the found
+genome holds the true topology-changing ops (E, L, B, I) in order and builds a control mesh of the true
+connectivity, "topology" when only the connectivity matches (an equivalent structure, e.g. two edge
+loops for inset + extrude), "no" otherwise. Connectivities are compared by a Weisfeiler-Lehman hash of
+the vertex-face incidence graph. ``polish`` is the search winner's distance before the final
+least-squares polish -> after it, with the polish's seconds. A second table (``--ablation``, on by default)
+runs the mesh targets of the three named examples again with the polish switched off everywhere (same GA
+and fitness), to show what the polish changes in error and time.
+
+    python benchmarks/surfaces.py                      # everything -> benchmarks/results/surfaces.md
+    python benchmarks/surfaces.py --samples extended --kinds mesh
+    python benchmarks/surfaces.py --quick              # tiny budgets (used by the tests)
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy
+
+from gsr_cad.atomic import write_text
+from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
+from gsr_cad.reconstruct.surface import reconstruct_surface
+from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES, SurfaceSample, random_ops_sample
+
+RESULTS = Path(__file__).resolve().parent / "results" / "surfaces.md"
+NAMED = ("extended", "flattened_extended", "inset_extrude", "unreachable")
+RANDOM_SEEDS = (0, 1, 2, 3, 5)
+KINDS = ("mesh", "cloud")
+QUICK_BUDGET = dict(population=20, initial_population=20, n_parents=6, max_children=3, n_perturb=3,
+                    n_newcomers=3, generations=3)
+PAPER = {"extended": "mean 1e-4 (max 1e-3), 240 s", "flattened_extended": "mean 2e-3 (max 5e-3), ~1400 s",
+         "inset_extrude": "I then E by generation 50", "random_ops": "similar ops, one extra edge loop"}
+STRUCTURAL = set("ELBI")
+FLOOR = 1e-5  # distances below this (of the diagonal) count as equal when comparing cloud and mesh
+NO_POLISH = dict(polish_rounds=0, polish_every=0, final_polish_rounds=0)
+
+
+@dataclasses.dataclass
+class Row:
+    sample: str
+    kind: str
+    mean: float
+    max: float
+    mixed: float
+    generations: int
+    evaluations: int
+    seconds: float
+    found: str
+    ops: str
+    true_ops: str
+    before: float
+    polish_seconds: float
+    n_vertices: int
+
+
+def topology_hash(mesh: PolyMesh, rounds: int = 4) -> str:
+    """Weisfeiler-Lehman hash of the vertex-face incidence graph (invariant under renumbering)."""
+    faces = mesh.faces
+    v_label = ["v"] * mesh.n_vertices
+    f_label = [f"f{len(f)}" for f in faces]
+    at_vertex: list[list[int]] = [[] for _ in range(mesh.n_vertices)]
+    for fi, f in enumerate(faces):
+        for v in f:
+            at_vertex[v].append(fi)
+    for _ in range(rounds):
+        new_f = [f_label[fi] + "(" + ",".join(sorted(v_label[v] for v in f)) + ")" for fi, f in enumerate(faces)]
+        new_v = [v_label[v] + "[" + ",".join(sorted(f_label[fi] for fi in at_vertex[v])) + "]"
+                 for v in range(mesh.n_vertices)]
+        f_label = [hashlib.sha1(x.encode()).hexdigest()[:12] for x in new_f]
+        v_label = [hashlib.sha1(x.encode()).hexdigest()[:12] for x in new_v]
+    return hashlib.sha1(",".join(sorted(v_label) + sorted(f_label)).encode()).hexdigest()
+
+
+def structural(letters: str) -> str:
+    return "".join(c for c in letters if c in STRUCTURAL)
+
+
+def is_subsequence(needle: str, hay: str) -> bool:
+    it = iter(hay)
+    return all(c in it for c in needle)
+
+
+def samples(names: list[str], random_seeds: tuple[int, ...]) -> list[SurfaceSample]:
+    out = []
+    for name in names:
+        if name == "random_ops":
+            out += [random_ops_sample(seed) for seed in random_seeds]
+        else:
+            out.append(SURFACE_SAMPLES[name]())
+    return out
+
+
+def run_one(sample: SurfaceSample, kind: str, seed: int, budget: dict) -> Row:
+    target = surface_target(sample.target, sample.name) if kind == "mesh" else SurfaceTarget(sample.cloud, None,
+                                                                                            sample.name)
+    started = time.perf_counter()
+    result = reconstruct_surface(target, seed=seed, **budget)
+    seconds = time.perf_counter() - started
+    m = result.metrics
+    found = "no"
+    if sample.truth_genome is not None and topology_hash(result.control_mesh) == topology_hash(sample.truth_control):
+        found = "ops" if is_subsequence(structural(sample.true_ops), structural(m["ops"])) else "topology"
+    elif sample.truth_genome is None:
+        found = "-"
+    return Row(sample.name, kind, m["mean_distance"], m["max_distance"], m["mixed_mean_distance"], m["generations"],
+               m["evaluations"], seconds, found, m["ops"], sample.true_ops, m["unpolished_mean_distance"],
+               m["polish_seconds"], m["n_control_vertices"])
+
+
+def _g(x: float) -> str:
+    return "0" if x == 0 else f"{x:.2g}" if x >= 1e-3 else f"{x:.1e}"
+
+
+def _ops(letters: str) -> str:
+    """Op letters with runs of V shortened (``LVVVVV`` -> ``L V*5``)."""
+    out, i = [], 0
+    while i < len(letters):
+        j = i
+        while j < len(letters) and letters[j] == letters[i]:
+            j += 1
+        out.append(letters[i] if j - i == 1 else f"{letters[i]}*{j - i}")
+        i = j
+    return " ".join(out)
+
+
+def checks(rows: list[Row]) -> list[str]:
+    """The issue's done-when targets, each with its verdict."""
+    by = {(r.sample, r.kind): r for r in rows}
+    out = []
+
+    def verdict(ok: bool) -> str:
+        return "met" if ok else "NOT met"
+
+    r = by.get(("extended", "mesh"))
+    if r:
+        out.append(f"- extended: mean {_g(r.mean)} <= 1e-4 in {r.seconds:.1f} s <= 15 s: "
+                   f"{verdict(r.mean <= 1e-4 and r.seconds <= 15)}")
+    r = by.get(("flattened_extended", "mesh"))
+    if r:
+        out.append(f"- flattened_extended: mean {_g(r.mean)} <= 2e-3 in {r.seconds:.1f} s <= 90 s: "
+                   f"{verdict(r.mean <= 2e-3 and r.seconds <= 90)}")
+    r = by.get(("inset_extrude", "mesh"))
+    if r:
+        out.append(f"- inset_extrude finds inset then extrude: found {_ops(r.ops)} ({r.found}): "
+                   f"{verdict(r.found == 'ops')}")
+    rnd = [r.mean for r in rows if r.sample.startswith("random_ops") and r.kind == "mesh"]
+    if rnd:
+        med = statistics.median(rnd)
+        out.append(f"- random 4-6 op targets (mesh): median mean {_g(med)} <= 5e-3: {verdict(med <= 5e-3)}")
+    pairs = [(by[(s, "mesh")], by[(s, "cloud")]) for s, k in by if k == "mesh" and (s, "cloud") in by]
+    if pairs:
+        worse = [f"{a.sample} ({_g(b.mean)} vs {_g(a.mean)})" for a, b in pairs
+                 if b.mean > 2 * max(a.mean, FLOOR)]
+        out.append(f"- point cloud within 2x of the mesh version (distances below {FLOOR:g} count as {FLOOR:g}): "
+                   f"{verdict(not worse)}" + (f"; worse: {', '.join(worse)}" if worse else ""))
+    return out
+
+
+def ablation_lines(pairs: list[tuple[Row, Row]]) -> list[str]:
+    if not pairs:
+        return []
+    out = ["", "Least-squares polish on and off (mesh targets, same seed, GA and fitness):", "",
+           "| sample | polish | mean | max | gens | evals | seconds | ops |", "|---|---|---|---|---|---|---|---|"]
+    for with_polish, without in pairs:
+        for label, r in (("on", with_polish), ("off", without)):
+            out.append(f"| {r.sample} | {label} | {_g(r.mean)} | {_g(r.max)} | {r.generations} | {r.evaluations} | "
+                       f"{r.seconds:.1f} | {_ops(r.ops)} |")
+    return out
+
+
+def markdown(rows: list[Row], args: argparse.Namespace, load: float, interrupted: bool,
+             ablation: list[tuple[Row, Row]] = ()) -> str:
+    head = ["# Surface benchmark", "",
+            "Generated by `python benchmarks/surfaces.py` (default settings: the paper's GA, box template, "
+            "symmetric point-to-surface fitness, least-squares polish). "
+            f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
+            f"{os.cpu_count()} CPUs ({platform.machine()}), load average {load:.1f} at the start; seed {args.seed}."
+            + (" **Interrupted: partial table.**" if interrupted else "")
+            + (" **Quick run: tiny GA budgets, a smoke test, not a measurement.**" if args.quick else ""), "",
+            "Distances are over the target's bounding-box diagonal: mean/max of the target points to the "
+            "result's level-2 limit mesh, and the paper's mixed mean distance. `polish`: the search winner's "
+            "mean distance before -> after the final least-squares polish (its seconds).", "",
+            "| sample | target | mean | max | mixed mean | gens | evals | seconds | true ops found | ops (true) "
+            "| polish | paper |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = []
+    for r in rows:
+        paper = PAPER.get("random_ops" if r.sample.startswith("random_ops") else r.sample, "") if r.kind == "mesh" else ""
+        lines.append(f"| {r.sample} | {r.kind} | {_g(r.mean)} | {_g(r.max)} | {_g(r.mixed)} | {r.generations} | "
+                     f"{r.evaluations} | {r.seconds:.1f} | {r.found} | {_ops(r.ops)} ({r.true_ops or '-'}) | "
+                     f"{_g(r.before)} -> {_g(r.mean)} ({r.polish_seconds:.2f} s) | {paper} |")
+    tail = [*ablation_lines(list(ablation)), "", "Done-when targets (issue 4):", "", *checks(rows), ""]
+    return "\n".join(head + lines + tail)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", nargs="+", default=list(NAMED[:3]) + ["random_ops", NAMED[3]],
+                        help="extended flattened_extended inset_extrude random_ops unreachable (default: all)")
+    parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
+    parser.add_argument("--random-seeds", nargs="+", type=int, default=list(RANDOM_SEEDS))
+    parser.add_argument("--seed", type=int, default=1, help="GA seed (default 1)")
+    parser.add_argument("--quick", action="store_true", help="tiny GA budgets (a smoke test, not a measurement)")
+    parser.add_argument("--ablation", action=argparse.BooleanOptionalAction, default=True,
+                        help="also run the named mesh targets without the polish (default: on)")
+    parser.add_argument("--out", type=Path, default=RESULTS, help=f"markdown output (default {RESULTS})")
+    args = parser.parse_args(argv)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    budget = QUICK_BUDGET if args.quick else {}
+    rows: list[Row] = []
+    ablation: list[tuple[Row, Row]] = []
+    interrupted = False
+
+    def show(row: Row, note: str = "") -> None:
+        print(f"{row.sample:20s} {row.kind:5s} mean {_g(row.mean):>8s} max {_g(row.max):>8s} "
+              f"{row.seconds:6.1f} s  gens {row.generations:3d}  {row.found:8s} {_ops(row.ops)}{note}", flush=True)
+
+    try:
+        for sample in samples(args.samples, tuple(args.random_seeds)):
+            for kind in args.kinds:
+                rows.append(run_one(sample, kind, args.seed, budget))
+                show(rows[-1])
+        if args.ablation:
+            for row in [r for r in rows if r.kind == "mesh" and r.sample in NAMED[:3]]:
+                ablation.append((row, run_one(SURFACE_SAMPLES[row.sample](), "mesh", args.seed,
+                                              dict(budget, **NO_POLISH))))
+                show(ablation[-1][1], "  (no polish)")
+    except KeyboardInterrupt:
+        interrupted = True
+    text = markdown(rows, args, load, interrupted, ablation)
+    write_text(args.out, text)
+    print("\n".join(text.splitlines()[-7:]))
+    print(f"wrote {args.out}")
+    return 130 if interrupted else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

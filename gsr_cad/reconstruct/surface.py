@@ -1,0 +1,630 @@
+"""Surface reconstruction: a mesh or point cloud -> Catmull-Clark control mesh + the ops that build it.
+
+The GA (paper, sections 4-5, "plus" scheme, the paper's settings) evolves genomes of the seven surface
+ops (V E L B I F S) on a template quad mesh, by default a cube placed and scaled so that its limit surface
+spans the target's bounding box; a genome starts as one or two random ops. A genome is scored on the
+level-``k`` limit mesh of its control mesh (``k = 2``).
+
+Fitness. The paper's mixed mean distance (``fitness="mixed"``, the ``paper`` preset) compares vertex
+*sets*: it is 0 only when every limit vertex and every target vertex are each other's nearest
+neighbours, and every vertex without such a partner costs a full bounding-box diagonal. That suits a
+target that is itself a limit mesh of the same level, but a point cloud (or any mesh) whose density
+differs from the limit mesh's keeps a floor of unmatched points however well the surfaces agree (about
+half the diagonal on our point-cloud samples), and the value jumps as pairings switch, which gives a
+least-squares fit nothing to follow. So the default (``fitness="surface"``) is the symmetric
+point-to-surface distance of :func:`~gsr_cad.geometry.surface_distance.point_to_surface`: the mean of
+(target points -> limit triangles) and (limit vertices -> target triangles, or -> cloud samples beyond
+their sampling radius), over the diagonal. It is 0 when the surfaces coincide, whatever the sampling.
+Both measures, exact, are always reported in the metrics; the search scores with a fast version (see
+:meth:`SurfaceProblem._distance`).
+
+Least-squares polish (beyond the paper). The limit surface is linear in the control vertices
+(``limit = L @ V``, ``L`` from the cached :class:`~gsr_cad.geometry.subdivision.CatmullClark`), so for
+fixed closest-point correspondences the best vertex positions solve a small linear least-squares
+problem (point-to-plane, lightly damped); a few such ICP-like rounds fit any genome's vertex positions,
+never into a mesh the ops would refuse (folded or flipped faces). It is used three ways:
+
+* every genome is scored after up to ``polish_rounds`` rounds, which stop early once a round gains
+  little (``polish_gain``): a structure that can fit the target keeps converging and scores what it can
+  reach, so the GA searches for the structure and the polish finds the positions (its genes are not
+  changed by this);
+* every ``polish_every`` generations the best genome gets the polish written back (the GA's local-search
+  hook), as ``translate_vertex`` ops after its other ops, one per moved vertex (older moves are folded
+  in, so genomes stay short);
+* the winner is polished once more (``final_polish_rounds``), so the saved genome replays exactly to the
+  saved control mesh.
+
+Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
+connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+
+from ..errors import ConfigError, GsrError, InputError, OpError
+from ..ga import GAConfig, GenerationReport, GeneticAlgorithm, RunResult
+from ..geometry.polymesh import PolyMesh, unit_cube
+from ..geometry.subdivision import CatmullClark, get_catmull_clark
+from ..geometry.surface_distance import (closest_near_vertices, cloud_distance, mixed_mean_distance,
+                                         point_to_surface, triangulate, vertex_triangles)
+from ..ops import mesh_kernel as MK
+from ..ops.mesh import OpRanges, TranslateVertex, perturb_op, random_op
+from .config import SurfaceConfig
+from .inputs import SurfaceTarget, load_template, surface_target, validate_template
+from .result import Result
+
+CUBE_LIMIT_HALF = 34.0 / 81.0
+"""Half-extent of the limit surface of a unit cube (its face centres): a cube of side ``s`` has a limit
+surface ``s * 68/81`` across, so a template meant to fill a box of extent ``e`` has side ``e * 81/68``."""
+_STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
+_TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
+
+
+def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
+    """The unit cube scaled and placed so that its limit surface spans the target's bounding box.
+
+    ``fit="box"`` scales each axis to the box; ``fit="cube"`` keeps a cube sized by the largest extent.
+    """
+    lo, hi = target.bbox
+    extent = hi - lo
+    if fit == "cube":
+        extent = np.full(3, extent.max())
+    elif fit != "box":
+        raise ConfigError(f"template-fit must be box or cube, not {fit!r}")
+    extent = np.maximum(extent, 1e-6 * float(extent.max()))
+    cube = unit_cube()
+    return cube.with_vertices(cube.vertices * (extent / (2.0 * CUBE_LIMIT_HALF)) + (lo + hi) / 2.0)
+
+
+def make_template(template: str | os.PathLike[str] | PolyMesh | None, target: SurfaceTarget,
+                  config: SurfaceConfig) -> PolyMesh:
+    """``"cube"`` (or None): :func:`box_template`; a PolyMesh or a mesh file: checked to be a valid quad mesh."""
+    if template is None or (isinstance(template, str) and template == "cube"):
+        return box_template(target, config.template_fit)
+    if isinstance(template, PolyMesh):
+        return validate_template(template)
+    if isinstance(template, (str, os.PathLike)):
+        return load_template(template)
+    raise InputError(f"template must be 'cube', a mesh file or a PolyMesh, not {type(template).__name__}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Evaluation:
+    """What one genome's score is made of: control mesh (after the evaluation polish), its limit mesh,
+    the point-to-surface distances and the cost."""
+
+    control: PolyMesh
+    limit: PolyMesh
+    triangles: np.ndarray
+    cost: float
+
+
+class SurfaceProblem:
+    """The GA problem for one target: random ops, repair, the cost of a genome and the polish."""
+
+    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh):
+        self.target = target
+        self.config = config
+        self.template = template
+        self.diag = target.diagonal
+        self.ranges = OpRanges(move=config.move_range, extrude=config.extrude_range, inward=config.inward_rate,
+                               face_move=config.face_move_range, max_factor=config.max_scale_factor)
+        n = len(target.points)
+        if config.max_target_points and n > config.max_target_points:
+            keep = np.sort(np.random.default_rng(_TARGET_SEED).choice(n, config.max_target_points, replace=False))
+        else:
+            keep = np.arange(n)
+        self.points = target.points[keep]
+        self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
+        self._target_rings: np.ndarray | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_states"] = OrderedDict()
+        return state
+
+    # --- replay with a prefix cache ----------------------------------------------------------------------
+    def _step(self, prefix: tuple, state: PolyMesh, op) -> PolyMesh | None:
+        """``op`` applied after ``prefix`` (whose state is ``state``), or None when it cannot apply."""
+        key = prefix + (op,)
+        cache = self._states
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        try:
+            nxt = op.apply(state)
+            if nxt.n_faces > self.config.max_control_faces:
+                nxt = None
+        except OpError:
+            nxt = None
+        cache[key] = nxt
+        if len(cache) > _STATE_CACHE:
+            cache.popitem(last=False)
+        return nxt
+
+    def walk(self, genome: tuple) -> tuple[tuple, PolyMesh]:
+        """The ops of ``genome`` that apply in order (others skipped) and the resulting control mesh."""
+        kept: tuple = ()
+        state = self.template
+        for op in genome:
+            nxt = self._step(kept, state, op)
+            if nxt is not None:
+                kept, state = kept + (op,), nxt
+        return kept, state
+
+    def control_mesh(self, genome: tuple) -> PolyMesh:
+        """The control mesh a (repaired) genome builds; OpError if an op cannot apply."""
+        kept, state = self.walk(genome)
+        if len(kept) != len(genome):
+            raise OpError("the genome has ops that cannot apply")
+        return state
+
+    # --- GA protocol -------------------------------------------------------------------------------------
+    def random_gene(self, rng: np.random.Generator, prefix: tuple):
+        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges)
+
+    def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
+        kept, state = self.walk(genome)
+        attempts = 0
+        while len(kept) < self.config.min_ops and attempts < 50:
+            attempts += 1
+            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges)
+            nxt = self._step(kept, state, op)
+            if nxt is not None:
+                kept, state = kept + (op,), nxt
+        return kept
+
+    def perturb(self, gene, rng: np.random.Generator):
+        return perturb_op(gene, rng, self.diag, rel=self.config.perturb_rel)
+
+    def cost(self, genome: tuple) -> float:
+        try:
+            return self.evaluate(genome, self.config.polish_rounds).cost
+        except GsrError:  # an op that cannot apply, or a mesh the subdivision refuses
+            return math.inf
+
+    def local_search(self, genome: tuple) -> tuple:
+        """The polish written back as ``translate_vertex`` ops (the GA's memetic hook)."""
+        return self.polished(genome, max(self.config.polish_rounds, 1))
+
+    # --- scoring -------------------------------------------------------------------------------------------
+    def _subdivision(self, mesh: PolyMesh) -> tuple[CatmullClark, np.ndarray]:
+        cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
+        return cc, triangulate(cc.corners, cc.offsets)
+
+    def _distance(self, limit_vertices: np.ndarray, triangles: np.ndarray, exact: bool = False) -> float:
+        """Cost of a limit mesh under the configured fitness, over the diagonal.
+
+        "surface": the symmetric point-to-surface distance, exact with ``exact`` (as reported), else with
+        each target point's closest point taken among the triangles around its nearest limit vertex (and
+        for a mesh target, each limit vertex's among those around its nearest target vertex): an upper
+        bound that equals the exact distance for nearly every point, at a fraction of the time, used by
+        the search.
+        """
+        target = self.target
+        if self.config.fitness == "mixed":
+            return mixed_mean_distance(limit_vertices, target.points, self.diag, target.kdtree) / self.diag
+        if exact:
+            d = point_to_surface(limit_vertices, triangles, self.points, target_surface=target.triangle_set,
+                                 target_tree=target.kdtree,
+                                 target_radius=target.sampling_radius if target.faces is None else None)
+            return d.symmetric / self.diag
+        fwd = closest_near_vertices(self.points, limit_vertices, triangles,
+                                    vertex_triangles(triangles, len(limit_vertices)))
+        back = self._back(limit_vertices)[0]
+        return 0.5 * (float(fwd.distance.mean()) + float(back.mean())) / self.diag
+
+    def evaluate(self, genome: tuple, rounds: int, exact: bool = False) -> Evaluation:
+        """Score ``genome`` after ``rounds`` least-squares rounds on its control vertices (``exact``: see
+        :meth:`_distance`)."""
+        mesh = self.control_mesh(genome)
+        cc, tris = self._subdivision(mesh)
+        vertices = self.fit(mesh, cc, tris, rounds)[0] if rounds > 0 else mesh.vertices
+        control = mesh if rounds <= 0 else mesh.with_vertices(vertices)
+        limit = cc.limit(vertices)
+        return Evaluation(control, limit, tris, float(self._distance(limit.vertices, tris, exact)))
+
+    def _back(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Limit vertices -> target: ``(distance, corresponding point, weight)`` per vertex.
+
+        A mesh target gives the closest point on the triangles around the nearest target vertex (weight 1).
+        A cloud gives the nearest sample; a vertex within that sample's sampling radius costs nothing and
+        is not pulled (weight 0), one beyond it pays the excess and is pulled towards it.
+        """
+        target = self.target
+        if target.faces is not None:
+            if self._target_rings is None:
+                self._target_rings = vertex_triangles(target.faces, len(target.points))
+            back = closest_near_vertices(X, target.points, target.faces, self._target_rings, target.kdtree)
+            return back.distance, back.point, np.ones(len(X))
+        d, idx = cloud_distance(X, target.points, target.sampling_radius, target.kdtree)
+        return d, target.points[idx], (d > 0).astype(np.float64)
+
+    def _round(self, X: np.ndarray, tris: np.ndarray, rings: np.ndarray, L: sp.csr_matrix
+               ) -> tuple[sp.csr_matrix, np.ndarray, float]:
+        """Least-squares rows of one polish round at limit vertices ``X``, and the symmetric cost of ``X`` as
+        those correspondences measure it (an upper bound of the exact one).
+
+        Target points pair with their closest points on the limit triangles around their nearest limit
+        vertex (barycentric combinations of limit vertices, hence rows of ``L``); limit vertices pair with
+        the target as in :meth:`_back`.
+        """
+        P = self.points
+        m, n_lim = len(P), len(X)
+        fwd = closest_near_vertices(P, X, tris, rings)
+        tri = tris[fwd.triangle]
+        A1 = sp.csr_matrix((fwd.barycentric.ravel(), (np.repeat(np.arange(m), 3), tri.ravel())),
+                           shape=(m, n_lim)) @ L
+        n1 = _unit_rows(np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]))
+        d_back, C, w_back = self._back(X)
+        J1, y1 = _rows(A1, n1, P, np.full(m, 1.0 / m))
+        J2, y2 = _rows(L, _unit_rows(_vertex_normals(X, tris)), C, w_back / n_lim)
+        cost = 0.5 * (fwd.distance.mean() + d_back.mean()) / self.diag
+        return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2]), float(cost)
+
+    def fit(self, mesh: PolyMesh, cc: CatmullClark, tris: np.ndarray, rounds: int,
+            min_gain: float | None = None) -> tuple[np.ndarray, float]:
+        """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
+        and their symmetric point-to-surface cost as the rounds measure it (an upper bound of the exact one).
+
+        Each round fixes the correspondences (see :meth:`_round`) and solves for the control vertices
+        ``V`` (``limit = L V``) minimising, with both directions weighted as in the symmetric distance,
+        the point-to-plane residuals (along the limit surface's normals, which lets the surface slide along
+        itself and converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals,
+        plus ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A
+        step the mesh ops would refuse (a folded or flipped face) is halved, twice, then the rounds stop.
+        Rounds also stop once one gains less than the factor ``min_gain`` (default
+        ``config.polish_gain``): a structure that cannot fit the target stops after a few rounds, one that
+        can keeps converging.
+        """
+        min_gain = self.config.polish_gain if min_gain is None else min_gain
+        L = cc.limit_matrix
+        n = L.shape[1]
+        rings = vertex_triangles(tris, L.shape[0])
+        V = np.array(mesh.vertices, dtype=np.float64)
+        normals0 = mesh.face_newell
+        best_v, best_cost, last = V, math.inf, math.inf
+        for r in range(rounds + 1):
+            J, y, cost = self._round(L @ V, tris, rings, L)
+            if cost < best_cost:
+                best_v, best_cost = V, cost
+            if r == rounds or cost == 0.0 or cost >= min_gain * last:
+                break
+            last = cost
+            H = (J.T @ J).toarray()
+            g = J.T @ y
+            lam = self.config.polish_damping * max(float(np.trace(H)) / len(H), 1e-300)
+            H[np.diag_indices_from(H)] += lam
+            g += lam * V.ravel()
+            try:
+                step = scipy.linalg.solve(H, g, assume_a="pos", check_finite=False).reshape(n, 3) - V
+            except (np.linalg.LinAlgError, ValueError):
+                break
+            # The ops must be able to build the result: back off (1/2, 1/4) from a mesh they would refuse.
+            for fraction in (1.0, 0.5, 0.25):
+                trial = V + fraction * step
+                if np.all(np.isfinite(trial)) and _sound(mesh.with_vertices(trial), normals0):
+                    V = trial
+                    break
+            else:
+                break
+        return best_v, best_cost
+
+    def _moves(self, state: PolyMesh, goal: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+        """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
+        vertices did not get there)``.
+
+        The ops refuse a move that would fold a face, and whether one does can depend on the order. First
+        each vertex gets one op, in passes while they make progress; if some vertex is left, the whole
+        move is instead made in 2 or 4 equal stages (every vertex a step per stage, following the straight
+        path between the two meshes); if that fails too, the first attempt's partial moves stand.
+        """
+        delta = goal - state.vertices
+        todo = [int(i) for i in np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12 * self.diag)]
+        moves: list = []
+        pending, current = todo, state
+        while pending:
+            left = []
+            for i in pending:
+                op = TranslateVertex(i, tuple(float(x) for x in delta[i]))
+                try:
+                    current = op.apply(current)
+                except OpError:
+                    left.append(i)
+                    continue
+                moves.append(op)
+            if len(left) == len(pending):
+                break
+            pending = left
+        if not pending:
+            return tuple(moves), current, 0
+        for stages in (2, 4):
+            trial, steps = state, []
+            try:
+                for _ in range(stages):
+                    for i in todo:
+                        op = TranslateVertex(i, tuple(float(x) for x in delta[i] / stages))
+                        trial = op.apply(trial)
+                        steps.append(op)
+            except OpError:
+                continue
+            return tuple(steps), trial, 0
+        return tuple(moves), current, len(pending)
+
+    def _bases(self, genome: tuple, mesh: PolyMesh) -> list[tuple[tuple, PolyMesh]]:
+        """Where the polish's ``translate_vertex`` ops may start: the genome's other ops, when they replay
+        alone to the same connectivity (so genomes stay short whatever their history), and the genome
+        without its trailing ``translate_vertex`` ops (smaller moves)."""
+        out = []
+        core = tuple(op for op in genome if not isinstance(op, TranslateVertex))
+        kept, state = self.walk(core)
+        if False and len(kept) == len(core) and state.topology_key == mesh.topology_key:
+            out.append((core, state))
+        cut = len(genome)
+        while cut > 0 and isinstance(genome[cut - 1], TranslateVertex):
+            cut -= 1
+        if genome[:cut] != core or not out:
+            out.append((genome[:cut], self.control_mesh(genome[:cut])))
+        return out
+
+    def polished(self, genome: tuple, rounds: int, min_gain: float = 1.0, attempts: int = 3) -> tuple:
+        """``genome``'s positions polished and written back as ``translate_vertex`` ops after the shortest
+        base of :meth:`_bases` that reaches them.
+
+        Moves the ops refuse are left out and the polish is tried again from what did apply, up to
+        ``attempts`` times. Returns the cheapest genome seen (``genome`` itself if nothing helps).
+        """
+        best = tuple(genome)
+        if rounds <= 0:
+            return best
+        best_cost = self.evaluate(best, 0).cost
+        for _ in range(attempts):
+            mesh = self.control_mesh(best)
+            cc, tris = self._subdivision(mesh)
+            new_v = self.fit(mesh, cc, tris, rounds, min_gain)[0]
+            tries = []
+            for ops, base in self._bases(best, mesh):
+                moves, _, refused = self._moves(base, new_v)
+                tries.append((refused, len(ops) + len(moves), ops + moves))
+            refused, _, candidate = min(tries, key=lambda t: t[:2])
+            cost = self.evaluate(candidate, 0).cost
+            if cost >= best_cost:
+                break
+            best, best_cost = candidate, cost
+            if not refused:
+                break
+        return best
+
+
+POINT_WEIGHT = 0.01
+"""Weight of the point-to-point residuals next to the point-to-plane ones in the polish."""
+
+
+def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
+    """True when every face passes the mesh ops' own checks (:mod:`gsr_cad.ops.mesh_kernel`): no (nearly)
+    zero-length edge or zero area, star-shaped about its centroid, not flipped against
+    ``reference_normals`` and not folded onto a neighbour; so vertex moves to it replay as ops."""
+    diag = mesh.diagonal
+    newell = mesh.face_newell
+    twice_area = np.linalg.norm(newell, axis=1)
+    if np.any(twice_area < 2.0 * MK.MIN_AREA_REL * diag * diag):
+        return False
+    normal = newell / twice_area[:, None]
+    if np.any(np.einsum("ij,ij->i", normal, reference_normals) <= 0.0):
+        return False
+    topo = mesh.topology
+    v = mesh.vertices
+    p, q = v[topo.he_origin], v[topo.he_dest]
+    if np.any(np.einsum("ij,ij->i", q - p, q - p) < (MK.MIN_EDGE_REL * diag) ** 2):
+        return False
+    c = mesh.face_centroids[topo.he_face]
+    fan = np.einsum("ij,ij->i", np.cross(p - c, q - c), normal[topo.he_face])
+    if np.any(fan < MK.FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]):
+        return False
+    inner = topo.edge_faces[:, 1] >= 0
+    f, g = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
+    return not np.any(np.einsum("ij,ij->i", normal[f], normal[g]) < -math.cos(math.radians(MK.FOLD_DEG)))
+
+
+def _unit_rows(a: np.ndarray) -> np.ndarray:
+    length = np.linalg.norm(a, axis=1, keepdims=True)
+    return np.divide(a, length, out=np.zeros_like(a), where=length > 0)
+
+
+def _vertex_normals(X: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals of a triangle mesh (not normalized)."""
+    face = np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]])
+    out = np.zeros_like(X)
+    for k in range(3):
+        out[:, k] = (np.bincount(tris[:, 0], face[:, k], len(X)) + np.bincount(tris[:, 1], face[:, k], len(X))
+                     + np.bincount(tris[:, 2], face[:, k], len(X)))
+    return out
+
+
+def _rows(A: sp.csr_matrix, normals: np.ndarray, goal: np.ndarray, weight: np.ndarray
+          ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Least-squares rows in the unknowns ``V.ravel()`` (``3 n``) for residuals ``A_j V - goal_j`` of weight
+    ``weight_j``: one point-to-plane row along ``normals_j`` and three point-to-point rows weighted
+    ``POINT_WEIGHT`` times less."""
+    A = sp.csr_matrix(A)
+    m, n = A.shape
+    row = np.repeat(np.arange(m), np.diff(A.indptr))
+    col, val = A.indices, A.data
+    s_plane = np.sqrt(weight)
+    s_point = np.sqrt(weight * POINT_WEIGHT)
+    r_list, c_list, v_list = [], [], []
+    for k in range(3):
+        r_list += [row, m + 3 * row + k]
+        c_list += [3 * col + k, 3 * col + k]
+        v_list += [val * (s_plane * normals[:, k])[row], val * s_point[row]]
+    J = sp.csr_matrix((np.concatenate(v_list), (np.concatenate(r_list), np.concatenate(c_list))),
+                      shape=(4 * m, 3 * n))
+    y = np.concatenate([s_plane * np.einsum("ij,ij->i", normals, goal), (s_point[:, None] * goal).ravel()])
+    return J, y
+
+
+def _ga_config(config: SurfaceConfig) -> GAConfig:
+    return GAConfig(
+        scheme="plus",
+        initial_population=max(config.initial_population, config.population),
+        population=config.population,
+        min_initial_genes=config.min_initial_ops,
+        max_initial_genes=config.max_initial_ops,
+        generations=config.generations,
+        mutation_rate=config.mutation_rate,
+        delete_rate=config.delete_rate,
+        append_rate=config.append_rate,
+        n_parents=config.n_parents,
+        max_children=config.max_children,
+        n_perturb=config.n_perturb,
+        n_newcomers=config.n_newcomers,
+        max_duplicates=config.max_duplicates,
+        threshold=config.threshold,
+        max_seconds=config.max_seconds or None,
+        stall_generations=config.stall_generations or None,
+        local_search_every=config.polish_every,
+    )
+
+
+def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
+    """Both distance measures between the control mesh's level-``k`` limit mesh and the whole target,
+    normalized by the target's bounding-box diagonal."""
+    cc = get_catmull_clark(control, config.levels, config.boundary)
+    limit = cc.limit(control.vertices)
+    tris = triangulate(cc.corners, cc.offsets)
+    diag = target.diagonal
+    cloud = target.faces is None
+    d = point_to_surface(limit.vertices, tris, target.points, target_surface=target.triangle_set,
+                         target_tree=target.kdtree, target_radius=target.sampling_radius if cloud else None)
+    mixed = mixed_mean_distance(limit.vertices, target.points, diag, target.kdtree)
+    return {
+        "mean_distance": float(d.to_surface.mean() / diag),
+        "max_distance": float(d.to_surface.max() / diag),
+        "rms_distance": float(np.sqrt(np.mean(d.to_surface ** 2)) / diag),
+        "mean_distance_to_target": float(d.to_target.mean() / diag),
+        "max_distance_to_target": float(d.to_target.max() / diag),
+        "symmetric_distance": float(d.symmetric / diag),
+        "mixed_mean_distance": float(mixed / diag),
+        "paper_fitness": float(1.0 / mixed) if mixed > 0 else math.inf,
+        "n_control_vertices": int(control.n_vertices),
+        "n_control_faces": int(control.n_faces),
+        "n_limit_vertices": int(limit.n_vertices),
+    }
+
+
+@dataclasses.dataclass
+class Snapshot:
+    """The best individual at one generation (kept in memory for the report, not in result.json)."""
+
+    generation: int
+    cost: float
+    genome: tuple
+    control: PolyMesh
+
+
+@dataclasses.dataclass
+class SurfaceResult(Result):
+    """A surface :class:`Result` plus in-memory extras: the target, the template and the best individual
+    at a few generations (``snapshots``, for the paper's Figure 5 layout)."""
+
+    target: SurfaceTarget | None = dataclasses.field(default=None, repr=False)
+    template: PolyMesh | None = dataclasses.field(default=None, repr=False)
+    snapshots: list[Snapshot] = dataclasses.field(default_factory=list, repr=False)
+
+
+def _pick_snapshots(changes: list[tuple[int, float, tuple]], count: int) -> list[tuple[int, float, tuple]]:
+    """Up to ``count`` improvements spread over the run: the first, the last and evenly between."""
+    if len(changes) <= count:
+        return list(changes)
+    idx = np.unique(np.round(np.linspace(0, len(changes) - 1, count)).astype(int))
+    return [changes[i] for i in idx]
+
+
+def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh = "cube", preset: str = "default",
+                        seed: int | None = None, config: SurfaceConfig | None = None,
+                        progress: Callable[[GenerationReport], None] | None = None,
+                        evaluator: Callable | None = None, n_snapshots: int = 4, **overrides: Any) -> SurfaceResult:
+    """Reconstruct a Catmull-Clark control mesh and its op history from a mesh or point cloud.
+
+    ``target``: a path (OBJ, PLY, STL, OFF mesh or XYZ/CSV/TXT/PTS/NPY/faceless PLY-OBJ cloud), an
+    ``(n, 3)`` array, a PolyMesh or a :class:`~gsr_cad.reconstruct.inputs.SurfaceTarget`. ``template``:
+    "cube" (fitted to the target's box), a quad mesh file or a PolyMesh. ``overrides`` are
+    :class:`SurfaceConfig` fields. ``evaluator`` is any ``(fn, items) -> list`` (e.g. a
+    :class:`~gsr_cad.ga.ProcessPoolEvaluator`). Ctrl-C during the search keeps the best genome found so
+    far (``result.interrupted``). Bad input raises InputError / TopologyError / ConfigError.
+    """
+    started = time.perf_counter()
+    tgt = surface_target(target)
+    if config is None:
+        config = SurfaceConfig.preset(preset, **overrides)
+    else:
+        config = dataclasses.replace(config, **overrides).validated() if overrides else config.validated()
+    tmpl = make_template(template, tgt, config)
+    problem = SurfaceProblem(tgt, config, tmpl)
+    engine = GeneticAlgorithm(problem, _ga_config(config), seed=seed, evaluator=evaluator)
+    changes: list[tuple[int, float, tuple]] = []
+
+    def on_generation(report: GenerationReport) -> None:
+        if not changes or report.best_cost < changes[-1][1]:
+            changes.append((report.generation, report.best_cost, tuple(report.best_genome)))
+        if progress is not None:
+            progress(report)
+
+    run: RunResult = engine.run(on_generation=on_generation)
+    best = tuple(run.best_genome)
+    searched = time.perf_counter()
+    final = problem.polished(best, config.final_polish_rounds) if best else best
+    polish_seconds = time.perf_counter() - searched
+    control = problem.control_mesh(final)
+    metrics = surface_metrics(control, tgt, config)
+    before = surface_metrics(problem.control_mesh(best), tgt, config) if final != best else metrics
+    metrics.update({
+        "fitness": problem.evaluate(final, 0, exact=True).cost,
+        "fitness_kind": ("mixed mean distance / diagonal" if config.fitness == "mixed"
+                         else "symmetric point-to-surface distance / diagonal"),
+        "search_fitness": float(run.best_cost),
+        "unpolished_symmetric_distance": before["symmetric_distance"],
+        "unpolished_mean_distance": before["mean_distance"],
+        "polish_seconds": polish_seconds,
+        "seconds": time.perf_counter() - started,
+        "generations": run.generations,
+        "evaluations": run.evaluations,
+        "stop_reason": run.stop_reason,
+        "n_ops": len(final),
+        "ops": "".join(getattr(op, "letter", "?") for op in final),
+    })
+    snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, config.polish_rounds).control)
+                 for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
+    cfg = config.to_json()
+    cfg.update({
+        "preset": preset,
+        "template": {"source": template if isinstance(template, str) else
+                     ("mesh" if isinstance(template, PolyMesh) else os.fspath(template)),
+                     "vertices": tmpl.vertices.tolist(), "faces": [list(f) for f in tmpl.faces]},
+        "target": {"name": tgt.name, "kind": tgt.kind, "n_points": len(tgt.points),
+                   "n_triangles": 0 if tgt.faces is None else len(tgt.faces), "diagonal": tgt.diagonal,
+                   "bbox": tgt.bbox.tolist()},
+    })
+    return SurfaceResult(kind="surface", config=cfg, seed=run.seed, genome=final, metrics=metrics,
+                         history=run.history, control_mesh=control, interrupted=run.interrupted,
+                         target=tgt, template=tmpl, snapshots=snapshots)
+
+
+def template_from_config(config: dict[str, Any]) -> PolyMesh:
+    """The template saved in a surface result's config (to replay its genome)."""
+    try:
+        t = config["template"]
+        return PolyMesh.from_faces(np.asarray(t["vertices"], dtype=float), t["faces"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"result config has no usable template ({exc})") from None
