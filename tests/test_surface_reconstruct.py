@@ -57,7 +57,7 @@ def test_polish_fits_the_right_structure_and_replays_as_ops():
     assert mesh.n_vertices == 12 and problem.evaluate(polished, 0).cost < 1e-6
     # a genome with a long history of moves comes back short: its other ops, then one move per vertex
     noisy = (TranslateVertex(0, (0.0, 0.0, 0.05)),) + loop + (TranslateVertex(3, (0.01, 0.0, 0.0)),) * 5
-    again = problem.polished(noisy, 20)
+    again = problem.polished(noisy, 20, compact=True)
     assert again[0] == loop[0] and len(again) <= 13 and problem.evaluate(again, 0).cost < 1e-6
 
 

@@ -33,7 +33,7 @@ from ..errors import InputError
 
 _MAX_SPLIT = 64  # sub-triangles per edge of one triangle in the sample tree (bounds memory on slivers)
 _SPLIT = 2  # pieces per median triangle edge: finer pieces mean fewer candidate triangles per query
-_K_CANDIDATES = 16  # pieces fetched per query in one vectorized KD-tree call before falling back to a ball query
+_K_CANDIDATES = 16  # pieces fetched per point by the first KD-tree query (4x more per later round, if needed)
 
 
 def triangulate(corners: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -140,9 +140,11 @@ class TriangleSet:
     """Exact closest-point queries on a fixed set of triangles (build once, query many times).
 
     ``vertices`` ``(n, 3)``, ``triangles`` ``(m, 3)`` vertex indices. Each triangle is cut into ``k**2``
-    similar pieces (``k`` grows with its longest edge over the median one) whose centroids go into a
-    KD-tree; every point of a piece lies within ``radius`` of its centroid, so the nearest triangle to a
-    query has a piece centroid within ``upper bound + radius`` of it.
+    similar pieces (``k`` = its longest edge over half the median longest edge, rounded up) whose
+    centroids go into a KD-tree; every point of a piece lies within ``radius`` of its centroid, so the
+    nearest triangle to a query has a piece centroid within ``upper bound + radius`` of it. Queries fetch
+    the nearest pieces, project onto their triangles, and fetch more only for points whose last fetched
+    piece still lies within that bound.
     """
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray):
@@ -225,44 +227,6 @@ class TriangleSet:
             dk, ik = self._tree.query(p[rows], k=k)
             dk, ik = dk.reshape(len(rows), k), ik.reshape(len(rows), k)
         return Closest(dist, tri, point, bary)
-
-
-def vertex_triangles(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
-    """``(n_vertices, w)`` table of the triangles around each vertex, padded with -1 (``w`` = largest count)."""
-    t = np.asarray(triangles, dtype=np.int64)
-    corner_vertex = t.ravel()
-    order = np.argsort(corner_vertex, kind="stable")
-    counts = np.bincount(corner_vertex, minlength=n_vertices)
-    width = max(int(counts.max(initial=0)), 1)
-    start = np.cumsum(counts) - counts
-    rank = np.arange(len(order)) - np.repeat(start, counts)
-    table = np.full((n_vertices, width), -1, dtype=np.int64)
-    table[corner_vertex[order], rank] = order // 3
-    return table
-
-
-def closest_near_vertices(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray, table: np.ndarray,
-                          tree: cKDTree | None = None) -> Closest:
-    """For every point, the closest point on the triangles around its nearest vertex (``table`` from
-    :func:`vertex_triangles`): one KD-tree query and one vectorized projection.
-
-    The true closest triangle is almost always among them for points near a fine mesh, and the distance
-    returned is never below the exact one (it is that of a real triangle), which is what the rounds of a
-    least-squares fit need; :class:`TriangleSet` gives the exact answer.
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64)
-    _, near = (cKDTree(v) if tree is None else tree).query(p)
-    cand = table[near]
-    r, c = np.nonzero(cand >= 0)
-    d, pt, bc = closest_on_triangles(p[r], v[t[cand[r, c], 0]], v[t[cand[r, c], 1]], v[t[cand[r, c], 2]])
-    grid = np.full(cand.shape, np.inf)
-    grid[r, c] = d
-    slot = np.full(cand.shape, -1, dtype=np.int64)
-    slot[r, c] = np.arange(r.size)
-    j = slot[np.arange(len(p)), np.argmin(grid, axis=1)]
-    return Closest(d[j], cand[r[j], c[j]], pt[j], bc[j])
 
 
 def mixed_mean_distance(a: np.ndarray, t: np.ndarray, diagonal: float, t_tree: cKDTree | None = None,

@@ -15,8 +15,7 @@ least-squares fit nothing to follow. So the default (``fitness="surface"``) is t
 point-to-surface distance of :func:`~gsr_cad.geometry.surface_distance.point_to_surface`: the mean of
 (target points -> limit triangles) and (limit vertices -> target triangles, or -> cloud samples beyond
 their sampling radius), over the diagonal. It is 0 when the surfaces coincide, whatever the sampling.
-Both measures, exact, are always reported in the metrics; the search scores with a fast version (see
-:meth:`SurfaceProblem._distance`).
+Both measures are always reported in the metrics.
 
 Least-squares polish (beyond the paper). The limit surface is linear in the control vertices
 (``limit = L @ V``, ``L`` from the cached :class:`~gsr_cad.geometry.subdivision.CatmullClark`), so for
@@ -29,10 +28,10 @@ never into a mesh the ops would refuse (folded or flipped faces). It is used thr
   reach, so the GA searches for the structure and the polish finds the positions (its genes are not
   changed by this);
 * every ``polish_every`` generations the best genome gets the polish written back (the GA's local-search
-  hook), as ``translate_vertex`` ops after its other ops, one per moved vertex (older moves are folded
-  in, so genomes stay short);
-* the winner is polished once more (``final_polish_rounds``), so the saved genome replays exactly to the
-  saved control mesh.
+  hook) as ``translate_vertex`` ops replacing its trailing ones, one per moved vertex;
+* the winner is polished once more (``final_polish_rounds``) and its history of moves folded into one
+  move per vertex after its other ops where they replay alone, so the saved genome is short and replays
+  exactly to the saved control mesh.
 
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
@@ -56,8 +55,8 @@ from ..errors import ConfigError, GsrError, InputError, OpError
 from ..ga import GAConfig, GenerationReport, GeneticAlgorithm, RunResult
 from ..geometry.polymesh import PolyMesh, unit_cube
 from ..geometry.subdivision import CatmullClark, get_catmull_clark
-from ..geometry.surface_distance import (closest_near_vertices, cloud_distance, mixed_mean_distance,
-                                         point_to_surface, triangulate, vertex_triangles)
+from ..geometry.surface_distance import (TriangleSet, cloud_distance, mixed_mean_distance, point_to_surface,
+                                         triangulate)
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, perturb_op, random_op
 from .config import SurfaceConfig
@@ -101,8 +100,8 @@ def make_template(template: str | os.PathLike[str] | PolyMesh | None, target: Su
 
 @dataclasses.dataclass(frozen=True)
 class Evaluation:
-    """What one genome's score is made of: control mesh (after the evaluation polish), its limit mesh,
-    the point-to-surface distances and the cost."""
+    """One genome's score: its control mesh (after the evaluation polish), that mesh's limit mesh and
+    triangles, and the cost."""
 
     control: PolyMesh
     limit: PolyMesh
@@ -126,8 +125,9 @@ class SurfaceProblem:
         else:
             keep = np.arange(n)
         self.points = target.points[keep]
+        # a template finer than the limit still gets room for a few ops
+        self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
-        self._target_rings: np.ndarray | None = None
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
@@ -144,7 +144,7 @@ class SurfaceProblem:
             return cache[key]
         try:
             nxt = op.apply(state)
-            if nxt.n_faces > self.config.max_control_faces:
+            if nxt.n_faces > self.max_faces:
                 nxt = None
         except OpError:
             nxt = None
@@ -172,9 +172,11 @@ class SurfaceProblem:
 
     # --- GA protocol -------------------------------------------------------------------------------------
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
+        """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
         return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges)
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
+        """The ops that apply (and keep the mesh within ``max_control_faces``), topped up to ``min_ops``."""
         kept, state = self.walk(genome)
         attempts = 0
         while len(kept) < self.config.min_ops and attempts < 50:
@@ -186,9 +188,11 @@ class SurfaceProblem:
         return kept
 
     def perturb(self, gene, rng: np.random.Generator):
+        """The same op with its parameters nudged by ``perturb_rel`` of the diagonal."""
         return perturb_op(gene, rng, self.diag, rel=self.config.perturb_rel)
 
     def cost(self, genome: tuple) -> float:
+        """The configured distance after the evaluation polish (inf for a genome that does not replay)."""
         try:
             return self.evaluate(genome, self.config.polish_rounds).cost
         except GsrError:  # an op that cannot apply, or a mesh the subdivision refuses
@@ -203,66 +207,50 @@ class SurfaceProblem:
         cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
         return cc, triangulate(cc.corners, cc.offsets)
 
-    def _distance(self, limit_vertices: np.ndarray, triangles: np.ndarray, exact: bool = False) -> float:
-        """Cost of a limit mesh under the configured fitness, over the diagonal.
-
-        "surface": the symmetric point-to-surface distance, exact with ``exact`` (as reported), else with
-        each target point's closest point taken among the triangles around its nearest limit vertex (and
-        for a mesh target, each limit vertex's among those around its nearest target vertex): an upper
-        bound that equals the exact distance for nearly every point, at a fraction of the time, used by
-        the search.
-        """
+    def _distance(self, limit_vertices: np.ndarray, triangles: np.ndarray) -> float:
+        """Cost of a limit mesh under the configured fitness, over the diagonal (both exact)."""
         target = self.target
         if self.config.fitness == "mixed":
             return mixed_mean_distance(limit_vertices, target.points, self.diag, target.kdtree) / self.diag
-        if exact:
-            d = point_to_surface(limit_vertices, triangles, self.points, target_surface=target.triangle_set,
-                                 target_tree=target.kdtree,
-                                 target_radius=target.sampling_radius if target.faces is None else None)
-            return d.symmetric / self.diag
-        fwd = closest_near_vertices(self.points, limit_vertices, triangles,
-                                    vertex_triangles(triangles, len(limit_vertices)))
-        back = self._back(limit_vertices)[0]
-        return 0.5 * (float(fwd.distance.mean()) + float(back.mean())) / self.diag
+        d = point_to_surface(limit_vertices, triangles, self.points, target_surface=target.triangle_set,
+                             target_tree=target.kdtree,
+                             target_radius=target.sampling_radius if target.faces is None else None)
+        return d.symmetric / self.diag
 
-    def evaluate(self, genome: tuple, rounds: int, exact: bool = False) -> Evaluation:
-        """Score ``genome`` after ``rounds`` least-squares rounds on its control vertices (``exact``: see
-        :meth:`_distance`)."""
+    def evaluate(self, genome: tuple, rounds: int) -> Evaluation:
+        """Score ``genome`` after ``rounds`` least-squares rounds on its control vertices."""
         mesh = self.control_mesh(genome)
         cc, tris = self._subdivision(mesh)
-        vertices = self.fit(mesh, cc, tris, rounds)[0] if rounds > 0 else mesh.vertices
+        vertices, cost = self.fit(mesh, cc, tris, rounds) if rounds > 0 else (mesh.vertices, None)
         control = mesh if rounds <= 0 else mesh.with_vertices(vertices)
         limit = cc.limit(vertices)
-        return Evaluation(control, limit, tris, float(self._distance(limit.vertices, tris, exact)))
+        if cost is None or self.config.fitness == "mixed":
+            cost = self._distance(limit.vertices, tris)
+        return Evaluation(control, limit, tris, float(cost))
 
     def _back(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Limit vertices -> target: ``(distance, corresponding point, weight)`` per vertex.
 
-        A mesh target gives the closest point on the triangles around the nearest target vertex (weight 1).
-        A cloud gives the nearest sample; a vertex within that sample's sampling radius costs nothing and
-        is not pulled (weight 0), one beyond it pays the excess and is pulled towards it.
+        A mesh target gives the closest point on its triangles (weight 1). A cloud gives the nearest
+        sample; a vertex within that sample's sampling radius costs nothing and is not pulled (weight 0),
+        one beyond it pays the excess and is pulled towards it.
         """
         target = self.target
-        if target.faces is not None:
-            if self._target_rings is None:
-                self._target_rings = vertex_triangles(target.faces, len(target.points))
-            back = closest_near_vertices(X, target.points, target.faces, self._target_rings, target.kdtree)
+        if target.triangle_set is not None:
+            back = target.triangle_set.closest(X)
             return back.distance, back.point, np.ones(len(X))
         d, idx = cloud_distance(X, target.points, target.sampling_radius, target.kdtree)
         return d, target.points[idx], (d > 0).astype(np.float64)
 
-    def _round(self, X: np.ndarray, tris: np.ndarray, rings: np.ndarray, L: sp.csr_matrix
-               ) -> tuple[sp.csr_matrix, np.ndarray, float]:
-        """Least-squares rows of one polish round at limit vertices ``X``, and the symmetric cost of ``X`` as
-        those correspondences measure it (an upper bound of the exact one).
+    def _round(self, X: np.ndarray, tris: np.ndarray, L: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray, float]:
+        """Least-squares rows of one polish round at limit vertices ``X``, and the symmetric cost of ``X``.
 
-        Target points pair with their closest points on the limit triangles around their nearest limit
-        vertex (barycentric combinations of limit vertices, hence rows of ``L``); limit vertices pair with
-        the target as in :meth:`_back`.
+        Target points pair with their closest points on the limit triangles (barycentric combinations of
+        limit vertices, hence rows of ``L``); limit vertices pair with the target as in :meth:`_back`.
         """
         P = self.points
         m, n_lim = len(P), len(X)
-        fwd = closest_near_vertices(P, X, tris, rings)
+        fwd = TriangleSet(X, tris).closest(P)
         tri = tris[fwd.triangle]
         A1 = sp.csr_matrix((fwd.barycentric.ravel(), (np.repeat(np.arange(m), 3), tri.ravel())),
                            shape=(m, n_lim)) @ L
@@ -276,7 +264,7 @@ class SurfaceProblem:
     def fit(self, mesh: PolyMesh, cc: CatmullClark, tris: np.ndarray, rounds: int,
             min_gain: float | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
-        and their symmetric point-to-surface cost as the rounds measure it (an upper bound of the exact one).
+        and their symmetric point-to-surface cost.
 
         Each round fixes the correspondences (see :meth:`_round`) and solves for the control vertices
         ``V`` (``limit = L V``) minimising, with both directions weighted as in the symmetric distance,
@@ -291,12 +279,11 @@ class SurfaceProblem:
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         L = cc.limit_matrix
         n = L.shape[1]
-        rings = vertex_triangles(tris, L.shape[0])
         V = np.array(mesh.vertices, dtype=np.float64)
         normals0 = mesh.face_newell
         best_v, best_cost, last = V, math.inf, math.inf
         for r in range(rounds + 1):
-            J, y, cost = self._round(L @ V, tris, rings, L)
+            J, y, cost = self._round(L @ V, tris, L)
             if cost < best_cost:
                 best_v, best_cost = V, cost
             if r == rounds or cost == 0.0 or cost >= min_gain * last:
@@ -362,25 +349,26 @@ class SurfaceProblem:
             return tuple(steps), trial, 0
         return tuple(moves), current, len(pending)
 
-    def _bases(self, genome: tuple, mesh: PolyMesh) -> list[tuple[tuple, PolyMesh]]:
-        """Where the polish's ``translate_vertex`` ops may start: the genome's other ops, when they replay
-        alone to the same connectivity (so genomes stay short whatever their history), and the genome
-        without its trailing ``translate_vertex`` ops (smaller moves)."""
-        out = []
-        core = tuple(op for op in genome if not isinstance(op, TranslateVertex))
-        kept, state = self.walk(core)
-        if False and len(kept) == len(core) and state.topology_key == mesh.topology_key:
-            out.append((core, state))
+    def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
+        """Where the polish's ``translate_vertex`` ops may start: the genome without its trailing
+        ``translate_vertex`` ops and, with ``compact``, the genome's other ops alone when they replay to
+        the same connectivity (one move per vertex then replaces the whole history of moves)."""
         cut = len(genome)
         while cut > 0 and isinstance(genome[cut - 1], TranslateVertex):
             cut -= 1
-        if genome[:cut] != core or not out:
-            out.append((genome[:cut], self.control_mesh(genome[:cut])))
+        out = [(genome[:cut], self.control_mesh(genome[:cut]))]
+        core = tuple(op for op in genome if not isinstance(op, TranslateVertex))
+        if compact and core != genome[:cut]:
+            kept, state = self.walk(core)
+            if len(kept) == len(core) and state.topology_key == mesh.topology_key:
+                out.append((core, state))
         return out
 
-    def polished(self, genome: tuple, rounds: int, min_gain: float = 1.0, attempts: int = 3) -> tuple:
+    def polished(self, genome: tuple, rounds: int, min_gain: float = 1.0, attempts: int = 3,
+                 compact: bool = False) -> tuple:
         """``genome``'s positions polished and written back as ``translate_vertex`` ops after the shortest
-        base of :meth:`_bases` that reaches them.
+        base of :meth:`_bases` that reaches them (during the search, only the trailing moves are replaced:
+        earlier moves place the ops that follow them, which helps those ops fit).
 
         Moves the ops refuse are left out and the polish is tried again from what did apply, up to
         ``attempts`` times. Returns the cheapest genome seen (``genome`` itself if nothing helps).
@@ -394,7 +382,7 @@ class SurfaceProblem:
             cc, tris = self._subdivision(mesh)
             new_v = self.fit(mesh, cc, tris, rounds, min_gain)[0]
             tries = []
-            for ops, base in self._bases(best, mesh):
+            for ops, base in self._bases(best, mesh, compact):
                 moves, _, refused = self._moves(base, new_v)
                 tries.append((refused, len(ops) + len(moves), ops + moves))
             refused, _, candidate = min(tries, key=lambda t: t[:2])
@@ -584,13 +572,13 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     run: RunResult = engine.run(on_generation=on_generation)
     best = tuple(run.best_genome)
     searched = time.perf_counter()
-    final = problem.polished(best, config.final_polish_rounds) if best else best
+    final = problem.polished(best, config.final_polish_rounds, compact=True) if best else best
     polish_seconds = time.perf_counter() - searched
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
     before = surface_metrics(problem.control_mesh(best), tgt, config) if final != best else metrics
     metrics.update({
-        "fitness": problem.evaluate(final, 0, exact=True).cost,
+        "fitness": problem.evaluate(final, 0).cost,
         "fitness_kind": ("mixed mean distance / diagonal" if config.fitness == "mixed"
                          else "symmetric point-to-surface distance / diagonal"),
         "search_fitness": float(run.best_cost),
