@@ -371,6 +371,39 @@ def test_local_search_is_applied_every_k_generations_when_better():
     assert off.polish_calls == 0
 
 
+class Niched(Seq):
+    """Niches by genome length; ``local_search`` records what it was given and returns it unchanged."""
+
+    def __init__(self, **kw):
+        super().__init__(**kw)
+        self.polished = []
+
+    def niche(self, genome):
+        return len(genome)
+
+    def local_search(self, genome):
+        self.polished.append(genome)
+        return genome
+
+
+def test_local_search_count_polishes_the_best_of_each_of_the_best_niches():
+    problem = Niched()
+    ga = GeneticAlgorithm(problem, small(generations=1, local_search_every=1, local_search_count=3), seed=4)
+    seen, cb = snapshots(ga)
+    ga.run(cb)
+    assert len(seen) == 2 and len(problem.polished) == 6
+    for generation, (_, pop, _) in enumerate(seen):
+        calls = problem.polished[3 * generation: 3 * generation + 3]
+        lengths = []
+        for g in pop:  # the first genome of each of the first three lengths, in cost order
+            if len(g) not in lengths:
+                lengths.append(len(g))
+        assert [len(g) for g in calls] == lengths[:3]
+        assert calls[0] == pop[0]
+    with pytest.raises(ConfigError, match="local_search_count"):
+        small(local_search_count=0).validate()
+
+
 def test_seed_genomes_join_the_first_population():
     problem = Seeded()
     ga = GeneticAlgorithm(problem, small(generations=3), seed=16)

@@ -11,6 +11,7 @@ import pytest
 from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError
 from gsr_cad.ga import ProcessPoolEvaluator
+from gsr_cad.geometry.isomorphism import connectivity_hash
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
 from gsr_cad.geometry.surface_distance import mixed_mean_distance
@@ -153,3 +154,44 @@ def test_full_reproduction_runs(name, kind):
     _, target = sample_target(name, kind)
     result = reconstruct_surface(target, seed=1)
     assert result.metrics["mean_distance"] <= (2e-3 if name == "flattened_extended" else 5e-3)
+    if name == "inset_extrude":  # the designer's history, after the rewrite
+        assert result.metrics["ops"].replace("V", "") == "IE"
+
+
+def test_runs_of_moves_merge_into_one_move_per_vertex():
+    _, target = sample_target("extended")
+    config = SurfaceConfig()
+    problem = SurfaceProblem(target, config, make_template("cube", target, config))
+    genome = (TranslateVertex(0, (0.01, 0.0, 0.0)), TranslateVertex(1, (0.0, 0.02, 0.0)),
+              TranslateVertex(0, (0.0, 0.0, 0.03)), EdgeLoop(0), TranslateVertex(8, (0.0, 0.01, 0.0)))
+    merged = problem.merged(genome)
+    assert merged == (TranslateVertex(0, (0.01, 0.0, 0.03)), TranslateVertex(1, (0.0, 0.02, 0.0)), EdgeLoop(0),
+                      TranslateVertex(8, (0.0, 0.01, 0.0)))
+    np.testing.assert_allclose(problem.control_mesh(merged).vertices, problem.control_mesh(genome).vertices,
+                               atol=1e-15)
+
+
+def test_two_polished_loops_are_saved_as_inset_then_extrude():
+    sample, target = sample_target("inset_extrude")
+    config = SurfaceConfig()
+    problem = SurfaceProblem(target, config, make_template("cube", target, config))
+    loops = None
+    for e1 in range(12):  # two horizontal loops: the connectivity of inset + extrude
+        for e2 in range(20):
+            genome = (EdgeLoop(e1), EdgeLoop(e2))
+            kept, mesh = problem.walk(genome)
+            if len(kept) == 2 and connectivity_hash(mesh) == connectivity_hash(sample.truth_control):
+                polished = problem.polished(genome, 40, attempts=8)
+                if problem.evaluate(polished, 0).cost < 1e-7:
+                    loops = polished
+                    break
+        if loops:
+            break
+    assert loops is not None and "".join(op.letter for op in loops).startswith("LLV")
+    before = problem.evaluate(loops, 0).cost
+    saved = problem.simplified(loops)
+    letters = "".join(op.letter for op in saved)
+    assert letters.replace("V", "") == "IE" and len(saved) < len(loops)
+    assert problem.evaluate(saved, 0).cost <= before + config.history_tolerance
+    # the paper preset keeps the search's history
+    assert SurfaceConfig.preset("paper").simplify_history is False

@@ -6,14 +6,14 @@ The engine minimises ``problem.cost`` and imports no geometry, ops or genome mod
 from .config import SCHEMES, GAConfig
 from .engine import GenerationReport, GeneticAlgorithm, RunResult
 from .evaluators import DaskEvaluator, Evaluator, ProcessPoolEvaluator, serial_evaluator
-from .problem import Gene, GenomeT, LocalSearch, Problem, SeedGenomes
+from .problem import Gene, GenomeT, LocalSearch, Niche, Problem, SeedGenomes
 from .selection import roulette_select, roulette_weights
 from .termination import progress, stop_reason, threshold_progress
 from .variation import mutate, offspring, perturb_one, random_genome, single_point_crossover
 
 __all__ = [
     "SCHEMES", "GAConfig", "GenerationReport", "GeneticAlgorithm", "RunResult", "DaskEvaluator", "Evaluator",
-    "ProcessPoolEvaluator", "serial_evaluator", "Gene", "GenomeT", "LocalSearch", "Problem", "SeedGenomes",
+    "ProcessPoolEvaluator", "serial_evaluator", "Gene", "GenomeT", "LocalSearch", "Niche", "Problem", "SeedGenomes",
     "roulette_select", "roulette_weights", "progress", "stop_reason", "threshold_progress", "mutate",
     "offspring", "perturb_one", "random_genome", "single_point_crossover",
 ]

@@ -16,7 +16,8 @@ from ..errors import ConfigError
 SCHEMES = ("steady_state", "plus")
 
 _INT_FIELDS = ("initial_population", "population", "min_initial_genes", "max_initial_genes", "generations",
-               "n_parents", "max_children", "n_perturb", "n_newcomers", "max_duplicates", "local_search_every")
+               "n_parents", "max_children", "n_perturb", "n_newcomers", "max_duplicates", "local_search_every",
+               "local_search_count")
 _RATE_FIELDS = ("mutation_rate", "delete_rate", "append_rate")
 
 
@@ -28,7 +29,9 @@ class GAConfig:
     replaced. ``append_rate`` (a chance per offspring) is not given in the paper. ``threshold`` is a cost:
     the run stops once the best cost is at or below it (0 means: only on a perfect fit).
     ``local_search_every`` = k > 0 polishes the best individual every k generations when the problem has a
-    ``local_search`` hook.
+    ``local_search`` hook; ``local_search_count`` = n polishes the best of each of the n best niches
+    instead (niches by the problem's optional ``niche`` hook, else one per genome), so that a structure
+    that needs a few polishes to show its worth is not starved by the incumbent.
     """
 
     scheme: str = "steady_state"
@@ -50,6 +53,7 @@ class GAConfig:
     max_seconds: float | None = None
     stall_generations: int | None = None
     local_search_every: int = 0
+    local_search_count: int = 1
 
     @classmethod
     def paper_curves(cls, **overrides: Any) -> GAConfig:
@@ -109,6 +113,7 @@ class GAConfig:
         _at_least(self, "max_initial_genes", self.min_initial_genes)
         _at_least(self, "generations", 1)
         _at_least(self, "local_search_every", 0)
+        _at_least(self, "local_search_count", 1)
         for name in _RATE_FIELDS:
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"{name} must lie in [0, 1], not {getattr(self, name)}")

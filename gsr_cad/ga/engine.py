@@ -278,10 +278,22 @@ class GeneticAlgorithm:
         k = self.config.local_search_every
         hook = getattr(self.problem, "local_search", None)
         if k > 0 and callable(hook) and generation % k == 0 and genomes:
-            polished = tuple(self.problem.repair(tuple(hook(genomes[0])), self._rng))
-            c = self._evaluate([polished])[0]
-            if c < costs[0]:
-                genomes[0], costs[0] = polished, c
+            niche = getattr(self.problem, "niche", None)
+            picked, seen = [], set()
+            for i, g in enumerate(genomes):
+                if not math.isfinite(costs[i]) or len(picked) == self.config.local_search_count:
+                    break
+                key = niche(g) if callable(niche) else g
+                if key not in seen:
+                    seen.add(key)
+                    picked.append(i)
+            for i in picked or [0]:
+                polished = tuple(self.problem.repair(tuple(hook(genomes[i])), self._rng))
+                c = self._evaluate([polished])[0]
+                if c < costs[i]:
+                    genomes[i], costs[i] = polished, c
+            order = np.argsort(costs, kind="stable")
+            genomes, costs = [genomes[i] for i in order], costs[order]
         self.population, self.costs, self.generation = genomes, costs, generation
 
     def _limit_duplicates(self, genomes: list[GenomeT], costs: np.ndarray) -> tuple[list[GenomeT], np.ndarray]:

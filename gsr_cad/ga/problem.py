@@ -7,7 +7,7 @@ Genes are opaque hashable items and a genome is a tuple of genes. The engine *mi
 from __future__ import annotations
 
 from collections.abc import Hashable
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -42,6 +42,15 @@ class LocalSearch(Protocol):
 
     def local_search(self, genome: GenomeT) -> GenomeT:
         """A genome expected to cost no more than ``genome``."""
+
+
+@runtime_checkable
+class Niche(Protocol):
+    """Optional hook: a hashable key grouping genomes of one kind (e.g. one mesh connectivity), so that
+    ``GAConfig.local_search_count`` polishes the best genome of each of the best few kinds."""
+
+    def niche(self, genome: GenomeT) -> Any:
+        """The key of ``genome``'s niche."""
 
 
 @runtime_checkable

@@ -33,7 +33,7 @@ from ..errors import InputError
 
 _MAX_SPLIT = 64  # sub-triangles per edge of one triangle in the sample tree (bounds memory on slivers)
 _SPLIT = 2  # pieces per median triangle edge: finer pieces mean fewer candidate triangles per query
-_K_CANDIDATES = 16  # pieces fetched per point by the first KD-tree query (4x more per later round, if needed)
+_K_CANDIDATES = 32  # pieces fetched per point by the first KD-tree query (4x more per later round, if needed)
 
 
 def triangulate(corners: np.ndarray, offsets: np.ndarray) -> np.ndarray:

@@ -47,7 +47,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError, InputError, OpError
 from ..geometry.polymesh import PolyMesh
 from . import mesh_kernel as K
 from .base import Op, register
@@ -55,7 +55,7 @@ from .mesh_conn import connectivity
 
 __all__ = [
     "Bevel", "EdgeLoop", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
-    "TranslateFace", "TranslateVertex", "bevel", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
+    "TranslateFace", "TranslateVertex", "bevel", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
     "scale", "translate_face", "translate_vertex",
 ]
 
@@ -386,3 +386,27 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
     if isinstance(op, EdgeLoop):
         return op
     raise InputError(f"perturb_op knows only surface ops, got {type(op).__name__}")
+
+
+def moves_to(state: PolyMesh, goal_vertices: np.ndarray, tol: float
+             ) -> tuple[tuple[TranslateVertex, ...], PolyMesh, int]:
+    """``translate_vertex`` ops taking the vertices of ``state`` that are further than ``tol`` from
+    ``goal_vertices`` there, one op each, in passes while the ops accept some (a move that would fold a
+    face now may not after its neighbours moved): ``(ops, resulting mesh, how many were refused)``."""
+    goal_vertices = np.asarray(goal_vertices, dtype=np.float64)
+    pending = [int(i) for i in np.flatnonzero(np.linalg.norm(goal_vertices - state.vertices, axis=1) > tol)]
+    moves: list[TranslateVertex] = []
+    while pending:
+        left = []
+        for i in pending:
+            op = TranslateVertex(i, tuple(float(x) for x in goal_vertices[i] - state.vertices[i]))
+            try:
+                state = op.apply(state)
+            except OpError:
+                left.append(i)
+                continue
+            moves.append(op)
+        if len(left) == len(pending):
+            return tuple(moves), state, len(left)
+        pending = left
+    return tuple(moves), state, 0

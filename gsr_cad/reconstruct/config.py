@@ -116,14 +116,20 @@ SURFACE_FITNESS = ("surface", "mixed")
 class SurfaceConfig:
     """All settings of a surface reconstruction (see :mod:`gsr_cad.reconstruct.surface` for the presets).
 
-    The GA fields default to the paper's surface settings (section 5). ``fitness`` "surface" is the
-    symmetric point-to-surface distance, "mixed" the paper's mixed mean distance (both normalized by the
-    target's bounding-box diagonal). ``polish_rounds`` > 0 scores every genome after that many
-    least-squares rounds on its control vertices (the genome keeps its own positions; the winner gets
-    the polish written back as ``translate_vertex`` ops, ``final_polish_rounds`` of them).
-    ``polish_every`` = k > 0 also writes the polish back into the best genome every k generations.
-    The op ranges are fractions of the target's bounding-box diagonal (see
-    :class:`~gsr_cad.ops.mesh.OpRanges`).
+    The GA fields default to the paper's surface settings (section 5); ``threshold`` stops the run once
+    the best cost reaches it. ``fitness`` "surface" is the symmetric point-to-surface distance, "mixed"
+    the paper's mixed mean distance (both over the target's bounding-box diagonal). The polish:
+    ``polish_rounds`` > 0 scores every genome after up to that many least-squares rounds on its control
+    vertices, stopping once a round gains less than the factor ``polish_gain`` (the genome keeps its own
+    positions); ``polish_every`` = k > 0 writes the polish back into the best genome of each of the
+    ``polish_niches`` best connectivities every k generations;
+    the winner is polished with up to ``final_polish_rounds`` rounds; ``polish_damping`` pulls each round
+    lightly towards the current positions. ``template_fit``: the default cube template scaled per axis
+    ("box") or uniformly ("cube") to the target's box. Op ranges are fractions of the target's
+    bounding-box diagonal (see :class:`~gsr_cad.ops.mesh.OpRanges`); ``max_control_faces`` bounds the
+    control mesh, ``max_target_points`` the target points scored (a fixed random subset of larger ones).
+    ``simplify_history`` rewrites the winner's history into the shortest equivalent one found (see
+    :mod:`gsr_cad.ops.rewrite`) if that raises its distance to the target by at most ``history_tolerance``.
     """
 
     template_fit: Literal["box", "cube"] = "box"
@@ -143,7 +149,10 @@ class SurfaceConfig:
     polish_gain: float = 0.7
     final_polish_rounds: int = 20
     polish_every: int = 1
+    polish_niches: int = 3
     polish_damping: float = 1e-3
+    simplify_history: bool = True
+    history_tolerance: float = 1e-6
     population: int = 100
     initial_population: int = 100
     min_initial_ops: int = 1
@@ -170,7 +179,7 @@ class SurfaceConfig:
         base: dict[str, Any] = {}
         if name == "paper":
             base = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
-                        polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0)
+                        polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0, simplify_history=False)
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(overrides) - names)
         if unknown:
@@ -191,14 +200,14 @@ class SurfaceConfig:
         if not isinstance(kinds, str) or not kinds or any(k not in "VELBIFS" for k in kinds) or len(set(kinds)) != len(kinds):
             raise ConfigError(f"op-kinds must be distinct letters from VELBIFS, not {kinds!r}")
         for field in ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
-                      "polish_every", "population", "initial_population", "min_initial_ops", "max_initial_ops",
-                      "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers", "max_duplicates",
-                      "generations", "stall_generations"):
+                      "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
+                      "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
+                      "max_duplicates", "generations", "stall_generations"):
             value = getattr(self, field)
             if not isinstance(value, int) or isinstance(value, bool) or value < 0:
                 raise ConfigError(f"{name_of(field)} must be a whole number >= 0, not {value!r}")
-        for field in ("levels", "population", "initial_population", "min_initial_ops", "min_ops", "n_parents",
-                      "max_duplicates", "generations", "max_control_faces"):
+        for field in ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
+                      "n_parents", "max_duplicates", "generations", "max_control_faces"):
             if getattr(self, field) < 1:
                 raise ConfigError(f"{name_of(field)} must be at least 1, not {getattr(self, field)!r}")
         if self.levels > 4:
@@ -218,7 +227,7 @@ class SurfaceConfig:
         if not (isinstance(self.polish_gain, (int, float)) and 0.0 < self.polish_gain <= 1.0):
             raise ConfigError(f"polish-gain must lie in (0, 1], not {self.polish_gain!r}")
         for field in ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
-                      "max_seconds"):
+                      "max_seconds", "history_tolerance"):
             value = getattr(self, field)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise ConfigError(f"{name_of(field)} must be a finite number >= 0, not {value!r}")

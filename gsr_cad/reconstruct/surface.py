@@ -33,6 +33,14 @@ never into a mesh the ops would refuse (folded or flipped faces). It is used thr
   move per vertex after its other ops where they replay alone, so the saved genome is short and replays
   exactly to the saved control mesh.
 
+History rewrite (beyond the paper). Several histories build the same connectivity (on a cube, an inset
+then an extrude of the inset face has the connectivity of two parallel edge loops), and with the polish
+placing the vertices they fit equally well, so the search keeps whichever it met first, with a move for
+every vertex. With ``simplify_history`` the winner is rewritten by :func:`~gsr_cad.ops.rewrite.simplify_history`
+into the shortest equivalent history found, whose op parameters place the vertices themselves (an inset
+then an extrude and the template's corners moved, rather than two loops and sixteen moves), provided its
+distance to the target exceeds the winner's by at most ``history_tolerance`` (of the diagonal).
+
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
 """
@@ -58,7 +66,8 @@ from ..geometry.subdivision import CatmullClark, get_catmull_clark
 from ..geometry.surface_distance import (TriangleSet, cloud_distance, mixed_mean_distance, point_to_surface,
                                          triangulate)
 from ..ops import mesh_kernel as MK
-from ..ops.mesh import OpRanges, TranslateVertex, perturb_op, random_op
+from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
+from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
 from .inputs import SurfaceTarget, load_template, surface_target, validate_template
 from .result import Result
@@ -67,6 +76,9 @@ CUBE_LIMIT_HALF = 34.0 / 81.0
 """Half-extent of the limit surface of a unit cube (its face centres): a cube of side ``s`` has a limit
 surface ``s * 68/81`` across, so a template meant to fill a box of extent ``e`` has side ``e * 81/68``."""
 _STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
+REWRITE_TOLERANCES = (1e-9, 1e-6, 1e-3)
+"""How far (over the diagonal) the history rewrite may move control vertices, tried in turn; the
+rewrite must also keep the distance to the target within ``history_tolerance`` of the winner's."""
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 
 
@@ -202,6 +214,17 @@ class SurfaceProblem:
         """The polish written back as ``translate_vertex`` ops (the GA's memetic hook)."""
         return self.polished(genome, max(self.config.polish_rounds, 1))
 
+    def simplified(self, genome: tuple) -> tuple:
+        """``genome`` rewritten into the shortest equivalent history found (:mod:`gsr_cad.ops.rewrite`) whose
+        cost exceeds ``genome``'s by at most ``history_tolerance``; ``genome`` itself if none does."""
+        limit = self.evaluate(genome, 0).cost + self.config.history_tolerance
+        return simplify_history(self.template, genome, REWRITE_TOLERANCES, kinds=self.config.op_kinds,
+                                accept=lambda history: self.evaluate(history, 0).cost <= limit)
+
+    def niche(self, genome: tuple) -> tuple:
+        """The connectivity of the control mesh ``genome`` builds (the GA polishes the best of a few)."""
+        return self.walk(genome)[1].topology_key
+
     # --- scoring -------------------------------------------------------------------------------------------
     def _subdivision(self, mesh: PolyMesh) -> tuple[CatmullClark, np.ndarray]:
         cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
@@ -319,23 +342,9 @@ class SurfaceProblem:
         """
         delta = goal - state.vertices
         todo = [int(i) for i in np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12 * self.diag)]
-        moves: list = []
-        pending, current = todo, state
-        while pending:
-            left = []
-            for i in pending:
-                op = TranslateVertex(i, tuple(float(x) for x in delta[i]))
-                try:
-                    current = op.apply(current)
-                except OpError:
-                    left.append(i)
-                    continue
-                moves.append(op)
-            if len(left) == len(pending):
-                break
-            pending = left
-        if not pending:
-            return tuple(moves), current, 0
+        moves, current, refused = moves_to(state, goal, 1e-12 * self.diag)
+        if not refused:
+            return moves, current, 0
         for stages in (2, 4):
             trial, steps = state, []
             try:
@@ -347,7 +356,7 @@ class SurfaceProblem:
             except OpError:
                 continue
             return tuple(steps), trial, 0
-        return tuple(moves), current, len(pending)
+        return moves, current, refused
 
     def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
         """Where the polish's ``translate_vertex`` ops may start: the genome without its trailing
@@ -393,6 +402,32 @@ class SurfaceProblem:
             if not refused:
                 break
         return best
+
+    def merged(self, genome: tuple) -> tuple:
+        """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
+        net move), run by run where the result still replays to the same mesh (within 1e-12 of the
+        diagonal): the same modelling history, fewer steps."""
+        genome = tuple(genome)
+        want = self.control_mesh(genome).vertices
+        runs, i = [], 0
+        while i < len(genome):
+            j = i
+            while j < len(genome) and isinstance(genome[j], TranslateVertex):
+                j += 1
+            if j - i > 1:
+                runs.append((i, j))
+            i = max(j, i + 1)
+        out = genome
+        for start, stop in reversed(runs):  # from the end, so earlier indices stay valid
+            net: dict[int, np.ndarray] = {}
+            for op in out[start:stop]:
+                net[op.vertex] = net.get(op.vertex, np.zeros(3)) + np.asarray(op.delta)
+            moves = tuple(TranslateVertex(v, tuple(float(x) for x in d)) for v, d in net.items() if np.any(d != 0.0))
+            candidate = out[:start] + moves + out[stop:]
+            kept, state = self.walk(candidate)
+            if len(kept) == len(candidate) and np.abs(state.vertices - want).max() <= 1e-12 * self.diag:
+                out = candidate
+        return out
 
 
 POINT_WEIGHT = 0.01
@@ -482,6 +517,7 @@ def _ga_config(config: SurfaceConfig) -> GAConfig:
         max_seconds=config.max_seconds or None,
         stall_generations=config.stall_generations or None,
         local_search_every=config.polish_every,
+        local_search_count=config.polish_niches,
     )
 
 
@@ -572,8 +608,13 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     run: RunResult = engine.run(on_generation=on_generation)
     best = tuple(run.best_genome)
     searched = time.perf_counter()
-    final = problem.polished(best, config.final_polish_rounds, compact=True) if best else best
-    polish_seconds = time.perf_counter() - searched
+    final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True)) if best else best
+    polished_at = time.perf_counter()
+    polish_seconds = polished_at - searched
+    searched_ops = "".join(getattr(op, "letter", "?") for op in final)
+    if config.simplify_history and final:
+        final = problem.simplified(final)
+    simplify_seconds = time.perf_counter() - polished_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
     before = surface_metrics(problem.control_mesh(best), tgt, config) if final != best else metrics
@@ -585,6 +626,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "unpolished_symmetric_distance": before["symmetric_distance"],
         "unpolished_mean_distance": before["mean_distance"],
         "polish_seconds": polish_seconds,
+        "simplify_seconds": simplify_seconds,
+        "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
         "evaluations": run.evaluations,

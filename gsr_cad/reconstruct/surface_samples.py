@@ -2,14 +2,15 @@
 
 Each sample's target is the level-2 limit mesh (:data:`LEVELS`, the fitness level by default) of its
 true control mesh, so a reconstruction that finds the true structure can match it exactly. Its
-point-cloud version (:attr:`SurfaceSample.cloud`) is drawn uniformly by area on the target's triangles,
-half as many again as the mesh has vertices and none at a vertex, so its density is unlike the limit
-mesh's (what the paper's mixed mean distance handles badly). Samples register into
+point-cloud version (:attr:`SurfaceSample.cloud`) is drawn by area on the target's triangles (away from
+their corners), half as many again as the mesh has vertices, so its density is unlike the limit mesh's
+(what the paper's mixed mean distance handles badly). Samples register into
 :mod:`gsr_cad.reconstruct.samples` under kind "surface" and are written as OBJ by ``gsr sample``.
 
 * ``extended``: the cube extruded in one direction (paper Fig. 5 top);
 * ``flattened_extended``: the top face lowered, then a side extruded (Fig. 5 bottom);
-* ``inset_extrude``: the top face inset, then extruded (Fig. 6 top: needs the two ops in this order);
+* ``inset_extrude``: the top face inset, then extruded (Fig. 6 top; note that on a cube this control mesh
+  has the connectivity of two parallel edge loops, or of an edge loop and an inset);
 * ``random_ops``: a seeded random sequence of 4 to 6 ops (Fig. 6 bottom), see :func:`random_ops_sample`;
 * ``unreachable``: a square ring (genus 1); no cube genome reaches it (the ops keep the genus).
 """
