@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
-import platform
 import sys
 import time
 import warnings
@@ -32,7 +30,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import scipy
 from scipy.interpolate import make_lsq_spline, splev, splprep
 
 from gsr_cad.atomic import write_text
@@ -40,6 +37,9 @@ from gsr_cad.errors import GsrError
 from gsr_cad.geometry.bspline import clamped_uniform_knots, sample_uniform
 from gsr_cad.geometry.distance import chord_length_params, point_to_polyline
 from gsr_cad.reconstruct.samples import CurveSample, get_sample, sample_names
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _common, also when this file is loaded by path
+from _common import command, environment, load_average, markdown_table, print_table  # noqa: E402
 
 DENSE = 4000  # samples of every result curve, for all measurements
 QUICK_SAMPLES = ("bspline_05", "sine_arc", "bspline_07_noisy")
@@ -175,6 +175,7 @@ def run_sample(name: str, tol: float, seed: int, quick: bool, progress: Callable
 
 
 HEADER = ("sample", "method", "ctrl pts", "data max", "tol met", "clean mean", "clean max", "seconds", "note")
+RIGHT = HEADER[2:8]
 
 
 def _cells(r: Row) -> tuple[str, ...]:
@@ -186,12 +187,11 @@ def markdown(rows: list[Row], args: argparse.Namespace, interrupted: bool) -> st
     lines = [
         "# Curve benchmark",
         "",
-        "`" + " ".join(["python", "benchmarks/curves.py", *args.argv]) + "`",
+        command("curves.py", args.argv),
         "",
         f"Tolerance (max distance to the data, fraction of its bbox diagonal): {args.tolerance:g}; seed {args.seed}; "
         f"{'quick budgets ' + str(QUICK_BUDGET) if args.quick else 'full budgets (preset defaults)'}.",
-        f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-        f"{os.cpu_count()} CPUs ({platform.machine()}), load average {args.load:.1f} at the start.",
+        environment(args.load) + ".",
         "",
         "Distances are fractions of a bounding-box diagonal. *data max*: data points to the result curve "
         "(the criterion the SciPy baselines are tuned to). *clean mean* / *clean max*: result curve against "
@@ -200,35 +200,11 @@ def markdown(rows: list[Row], args: argparse.Namespace, interrupted: bool) -> st
         "limit as the baselines (`--max-distance` and `--tolerance`), so its control-point count compares "
         "directly with theirs; the baselines' times include their tuning loops.",
         "",
-        "| " + " | ".join(HEADER) + " |",
-        "|" + "|".join("---" if i < 2 or i == 8 else "---:" for i in range(len(HEADER))) + "|",
+        *markdown_table(HEADER, [_cells(r) for r in rows], RIGHT),
     ]
-    lines += ["| " + " | ".join(_cells(r)) + " |" for r in rows]
     if interrupted:
         lines += ["", "**Interrupted**: the table holds only the runs that finished."]
     return "\n".join(lines) + "\n"
-
-
-def print_table(rows: list[Row]) -> None:
-    try:
-        from rich.console import Console
-        from rich.table import Table
-    except ImportError:
-        print("  ".join(HEADER))
-        for r in rows:
-            print("  ".join(_cells(r)))
-        return
-    table = Table(title="curve benchmark (distances: fractions of the bbox diagonal)")
-    for i, h in enumerate(HEADER):
-        table.add_column(h, justify="left" if i < 2 or i == 8 else "right")
-    previous = None
-    for r in rows:
-        if previous is not None and r.sample != previous:
-            table.add_section()
-        table.add_row(*_cells(r))
-        previous = r.sample
-    console = Console()
-    Console(width=max(console.width, 150)).print(table)  # a full-width table even when piped
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -242,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=RESULTS, help=f"markdown output (default {RESULTS})")
     args = parser.parse_args(argv)
     args.argv = argv
-    args.load = os.getloadavg()[0]
+    args.load = load_average()
     if not (args.tolerance > 0):
         parser.error("--tolerance must be positive")
     names = [n for item in args.samples for n in item.split(",") if n] if args.samples else \
@@ -264,7 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     except GsrError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print_table(rows)
+    print_table("curve benchmark (distances: fractions of the bbox diagonal)", HEADER, [_cells(r) for r in rows],
+                RIGHT, [r.sample for r in rows], width=150)
     write_text(args.out, markdown(rows, args, interrupted))
     print(f"wrote {args.out}")
     return 130 if interrupted else 0

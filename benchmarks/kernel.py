@@ -20,19 +20,20 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
-import platform
+import itertools
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import scipy
 
 from gsr_cad.atomic import write_text
 from gsr_cad.geometry import subdivision
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _common, also when this file is loaded by path
+from _common import command, environment, markdown_table, print_table  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "kernel.md"
 
@@ -132,12 +133,11 @@ def bench_subdivision(quick: bool) -> list[Row]:
     rows = []
     rng = np.random.default_rng(0)
     for name, mesh in subdivision_meshes(quick).items():
-        fresh = [PolyMesh(mesh.vertices + rng.normal(0, 0.01, mesh.vertices.shape), mesh.corners, mesh.offsets)
-                 for _ in range(64)]
-        cycle = iter(range(1 << 62))
+        fresh = itertools.cycle([PolyMesh(mesh.vertices + rng.normal(0, 0.01, mesh.vertices.shape), mesh.corners,
+                                          mesh.offsets) for _ in range(64)])
 
-        def cached(fresh=fresh, cycle=cycle):
-            return subdivision.limit_mesh(fresh[next(cycle) % len(fresh)], levels)
+        def cached(fresh=fresh):
+            return subdivision.limit_mesh(next(fresh), levels)
 
         def uncached(mesh=mesh):
             subdivision.clear_cache()
@@ -189,10 +189,10 @@ def bench_ops(quick: bool) -> list[Row]:
     cube = unit_cube()
     budget = 0.1 if quick else 1.0
     faces = int(np.median([replay(cube, g).n_faces for g in genomes]))
-    cycle = iter(range(1 << 62))
+    cycle = itertools.cycle(genomes)
 
     def one_replay():
-        return replay(cube, genomes[next(cycle) % len(genomes)])
+        return replay(cube, next(cycle))
 
     def cached():
         return subdivision.limit_mesh(one_replay(), 3)
@@ -217,6 +217,7 @@ SECTIONS: dict[str, Callable[[bool], list[Row]]] = {"subdivision": bench_subdivi
 # --- output -------------------------------------------------------------------------------------------
 
 HEADER = ("section", "case", "faces", "measure", "per second", "one call", "note")
+RIGHT = ("faces", "per second", "one call")
 
 
 def _duration(seconds: float) -> str:
@@ -235,36 +236,13 @@ def markdown(rows: list[Row], argv: list[str]) -> str:
     lines = [
         "# Kernel benchmark",
         "",
-        f"`python benchmarks/kernel.py {' '.join(argv)}`".replace(" `", "`"),
+        command("kernel.py", argv),
         "",
-        f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-        f"{os.cpu_count()} CPUs ({platform.machine()}). One call: best of several timed loops.",
+        f"{environment()}. One call: best of several timed loops.",
         "",
-        "| " + " | ".join(HEADER) + " |",
-        "|" + "|".join("---:" if h in ("faces", "per second", "one call") else "---" for h in HEADER) + "|",
+        *markdown_table(HEADER, [_cells(r) for r in rows], RIGHT),
     ]
-    lines += ["| " + " | ".join(_cells(r)) + " |" for r in rows]
     return "\n".join(lines) + "\n"
-
-
-def print_table(rows: list[Row]) -> None:
-    try:
-        from rich.console import Console
-        from rich.table import Table
-    except ImportError:
-        for r in [HEADER, *map(_cells, rows)]:
-            print("  ".join(r))
-        return
-    table = Table(title="kernel benchmark")
-    for h in HEADER:
-        table.add_column(h, justify="right" if h in ("faces", "per second", "one call") else "left")
-    previous = None
-    for r in rows:
-        if previous is not None and (r.section, r.case) != previous:
-            table.add_section()
-        table.add_row(*_cells(r))
-        previous = (r.section, r.case)
-    Console(width=max(Console().width, 140)).print(table)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -280,7 +258,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown section(s) {', '.join(unknown)}; choose from {', '.join(SECTIONS)}")
     rows = [row for name in names for row in SECTIONS[name](args.quick)]
-    print_table(rows)
+    print_table("kernel benchmark", HEADER, [_cells(r) for r in rows], RIGHT, [(r.section, r.case) for r in rows],
+                width=140)
     write_text(args.out, markdown(rows, argv))
     print(f"wrote {args.out}")
     return 0

@@ -28,21 +28,21 @@ from __future__ import annotations
 import argparse
 import concurrent.futures
 import dataclasses
-import os
-import platform
 import statistics
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-import scipy
-
 from gsr_cad.atomic import write_text
 from gsr_cad.geometry.isomorphism import connectivity_hash
-from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
+from gsr_cad.ops.rewrite import STRUCTURAL
+from gsr_cad.plots import run_length
+from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.reconstruct.surface import reconstruct_surface
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES, SurfaceSample, random_ops_sample
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # _common, also when this file is loaded by path
+from _common import environment, load_average  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "surfaces.md"
 NAMED = ("extended", "flattened_extended", "inset_extrude", "unreachable")
@@ -52,7 +52,6 @@ QUICK_BUDGET = dict(population=20, initial_population=20, n_parents=6, max_child
                     n_newcomers=3, generations=3)
 PAPER = {"extended": "mean 1e-4 (max 1e-3), 240 s", "flattened_extended": "mean 2e-3 (max 5e-3), ~1400 s",
          "inset_extrude": "I then E by generation 50", "random_ops": "similar ops, one extra edge loop"}
-STRUCTURAL = set("ELBI")
 FLOOR = 1e-5  # distances below this (of the diagonal) count as equal when comparing cloud and mesh
 NO_POLISH = dict(polish_rounds=0, polish_every=0, final_polish_rounds=0)
 
@@ -76,13 +75,10 @@ class Row:
     n_vertices: int
 
 
-def structural(letters: str) -> str:
-    return "".join(c for c in letters if c in STRUCTURAL)
-
-
-def is_subsequence(needle: str, hay: str) -> bool:
-    it = iter(hay)
-    return all(c in it for c in needle)
+def holds_true_ops(true_ops: str, ops: str) -> bool:
+    """Whether ``ops`` holds the structural ops (E L B I) of ``true_ops``, in order."""
+    rest = iter(ops)
+    return all(c in rest for c in true_ops if c in STRUCTURAL)
 
 
 def build(name: str) -> SurfaceSample:
@@ -106,38 +102,24 @@ def task(args: tuple[str, str, int, dict]) -> Row:
 
 
 def run_one(sample: SurfaceSample, kind: str, seed: int, budget: dict) -> Row:
-    target = surface_target(sample.target, sample.name) if kind == "mesh" else SurfaceTarget(sample.cloud, None,
-                                                                                            sample.name)
+    target = surface_target(sample.target if kind == "mesh" else sample.cloud, sample.name)
     started = time.perf_counter()
     result = reconstruct_surface(target, seed=seed, **budget)
     seconds = time.perf_counter() - started
     m = result.metrics
-    found = "no"
-    same = connectivity_hash(result.control_mesh) == connectivity_hash(sample.truth_control)
-    if sample.truth_genome is not None and same:
-        found = "ops" if is_subsequence(structural(sample.true_ops), structural(m["ops"])) else "topology"
-    elif sample.truth_genome is None:
+    if sample.truth_genome is None:
         found = "-"
+    elif connectivity_hash(result.control_mesh) != connectivity_hash(sample.truth_control):
+        found = "no"
+    else:
+        found = "ops" if holds_true_ops(sample.true_ops, m["ops"]) else "topology"
     return Row(sample.name, kind, m["mean_distance"], m["max_distance"], m["mixed_mean_distance"], m["generations"],
                m["evaluations"], seconds, found, m["ops"], sample.true_ops, m["searched_ops"],
-               m["unpolished_mean_distance"],
-               m["polish_seconds"], m["n_control_vertices"])
+               m["unpolished_mean_distance"], m["polish_seconds"], m["n_control_vertices"])
 
 
 def _g(x: float) -> str:
     return "0" if x == 0 else f"{x:.2g}" if x >= 1e-3 else f"{x:.1e}"
-
-
-def _ops(letters: str) -> str:
-    """Op letters with runs of V shortened (``LVVVVV`` -> ``L V*5``)."""
-    out, i = [], 0
-    while i < len(letters):
-        j = i
-        while j < len(letters) and letters[j] == letters[i]:
-            j += 1
-        out.append(letters[i] if j - i == 1 else f"{letters[i]}*{j - i}")
-        i = j
-    return " ".join(out)
 
 
 def checks(rows: list[Row]) -> list[str]:
@@ -158,7 +140,7 @@ def checks(rows: list[Row]) -> list[str]:
                    f"{verdict(r.mean <= 2e-3 and r.seconds <= 90)}")
     r = by.get(("inset_extrude", "mesh"))
     if r:
-        out.append(f"- inset_extrude finds inset then extrude: found {_ops(r.ops)} ({r.found}): "
+        out.append(f"- inset_extrude finds inset then extrude: found {run_length(r.ops)} ({r.found}): "
                    f"{verdict(r.found == 'ops')}")
     rnd = [r.mean for r in rows if r.sample.startswith("random_ops") and r.kind == "mesh"]
     if rnd:
@@ -181,7 +163,7 @@ def ablation_lines(pairs: list[tuple[Row, Row]]) -> list[str]:
     for with_polish, without in pairs:
         for label, r in (("on", with_polish), ("off", without)):
             out.append(f"| {r.sample} | {label} | {_g(r.mean)} | {_g(r.max)} | {r.generations} | {r.evaluations} | "
-                       f"{r.seconds:.1f} | {_ops(r.ops)} |")
+                       f"{r.seconds:.1f} | {run_length(r.ops)} |")
     return out
 
 
@@ -190,8 +172,7 @@ def markdown(rows: list[Row], args: argparse.Namespace, load: float, interrupted
     head = ["# Surface benchmark", "",
             "Generated by `python benchmarks/surfaces.py` (default settings: the paper's GA, box template, "
             "symmetric point-to-surface fitness, least-squares polish). "
-            f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-            f"{os.cpu_count()} CPUs ({platform.machine()}), load average {load:.1f} at the start; seed {args.seed}. "
+            f"{environment(load)}; seed {args.seed}. "
             "The examples with time targets ran one at a time"
             + (f", the others {args.jobs} at a time (one core each)." if args.jobs > 1 else ".")
             + (" **Interrupted: partial table.**" if interrupted else "")
@@ -206,10 +187,12 @@ def markdown(rows: list[Row], args: argparse.Namespace, load: float, interrupted
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines = []
     for r in rows:
-        paper = PAPER.get("random_ops" if r.sample.startswith("random_ops") else r.sample, "") if r.kind == "mesh" else ""
+        paper = PAPER.get("random_ops" if r.sample.startswith("random_ops") else r.sample, "")
+        paper = paper if r.kind == "mesh" else ""
+        searched = run_length(r.searched_ops) if r.searched_ops != r.ops else "same"
         lines.append(f"| {r.sample} | {r.kind} | {_g(r.mean)} | {_g(r.max)} | {_g(r.mixed)} | {r.generations} | "
-                     f"{r.evaluations} | {r.seconds:.1f} | {r.found} | {_ops(r.ops)} ({r.true_ops or '-'}) | "
-                     f"{_ops(r.searched_ops) if r.searched_ops != r.ops else 'same'} | {_g(r.before)} -> {_g(r.mean)} ({r.polish_seconds:.2f} s) | {paper} |")
+                     f"{r.evaluations} | {r.seconds:.1f} | {r.found} | {run_length(r.ops)} ({r.true_ops or '-'}) | "
+                     f"{searched} | {_g(r.before)} -> {_g(r.mean)} ({r.polish_seconds:.2f} s) | {paper} |")
     tail = [*ablation_lines(list(ablation)), "", "Done-when targets (issue 4):", "", *checks(rows), ""]
     return "\n".join(head + lines + tail)
 
@@ -228,15 +211,15 @@ def main(argv: list[str] | None = None) -> int:
                         help="run the targets without a time target (random, unreachable) this many at a time")
     parser.add_argument("--out", type=Path, default=RESULTS, help=f"markdown output (default {RESULTS})")
     args = parser.parse_args(argv)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    load = load_average()
     budget = QUICK_BUDGET if args.quick else {}
     rows: list[Row] = []
     ablation: list[tuple[Row, Row]] = []
     interrupted = False
 
     def show(row: Row, note: str = "") -> None:
-        print(f"{row.sample:20s} {row.kind:5s} mean {_g(row.mean):>8s} max {_g(row.max):>8s} "
-              f"{row.seconds:6.1f} s  gens {row.generations:3d}  {row.found:8s} {_ops(row.ops)}{note}", flush=True)
+        print(f"{row.sample:20s} {row.kind:5s} mean {_g(row.mean):>8s} max {_g(row.max):>8s} {row.seconds:6.1f} s  "
+              f"gens {row.generations:3d}  {row.found:8s} {run_length(row.ops)}{note}", flush=True)
 
     names = sample_names(args.samples, tuple(args.random_seeds))
     timed = [(n, k, args.seed, budget) for n in names if n in NAMED[:3] for k in args.kinds]

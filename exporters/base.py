@@ -7,6 +7,9 @@ to ``export_<kind>``/``validate_<kind>``, so a surface branch is added by writin
 ``"surface"`` to ``kinds``; the registry (``gsr_cad.cli.formats``) never offers an exporter for a kind it
 does not declare.
 
+What results become is shared here: :func:`curve_spline` (a curve's B-spline) and :func:`surface_patches`
+(a surface's limit patches, fitted once per result for every exporter).
+
 Tolerances are relative to the geometry's scale, ``max(1, largest absolute coordinate)``: data stored as
 numbers (poles, knots, nodes) must come back within :data:`EXACT_TOL` of it, points a host evaluates
 within :data:`SAMPLE_TOL`.
@@ -25,12 +28,15 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gsr_cad import genome as genome_mod
-from gsr_cad.errors import ExportError, InputError, OpError
+from gsr_cad.errors import ExportError, GsrError, InputError, OpError
 from gsr_cad.geometry import bspline
+from gsr_cad.geometry.patches import PatchSet, limit_patches
 from gsr_cad.ops import curve as curve_ops
 
 EXACT_TOL = 1e-9
 SAMPLE_TOL = 1e-6
+PATCH_TOLERANCE = 1e-4
+"""Default largest deviation of the limit-surface patches from the limit surface, relative to its diagonal."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,6 +130,16 @@ def curve_checks(path: Path | str, host: str, spline: CurveSpline, params: np.nd
 def num(x: float) -> str:
     """Shortest text that reads back as exactly the same double."""
     return repr(float(x))
+
+
+def patch_literals(patch: Any) -> tuple[str, str, str, str, str]:
+    """Python literals of a B-spline patch for generated scripts: its poles ``[[(x, y, z), ...], ...]`` (rows
+    along u), then its distinct u knots, their multiplicities, the v knots and theirs, exactly (:func:`num`)."""
+    poles = "[" + ", ".join("[" + ", ".join(f"({num(x)}, {num(y)}, {num(z)})" for x, y, z in row) + "]"
+                            for row in patch.poles.tolist()) + "]"
+    (uk, um), (vk, vm) = patch.breakpoints_u, patch.breakpoints_v
+    return (poles, "[" + ", ".join(num(k) for k in uk) + "]", "[" + ", ".join(str(int(m)) for m in um) + "]",
+            "[" + ", ".join(num(k) for k in vk) + "]", "[" + ", ".join(str(int(m)) for m in vm) + "]")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,6 +256,36 @@ def curve_history(result: Any) -> list[HistoryStep]:
     width = max(2, len(str(len(result.genome))))
     ops: list[dict[str, Any] | None] = [None, *(op.to_json() for op in result.genome)]
     return [HistoryStep(op_label(i, op, width), op, s.points) for i, (op, s) in enumerate(zip(ops, states))]
+
+
+_PATCH_CACHE: dict[tuple, PatchSet] = {}
+
+
+def surface_patches(result: Any) -> PatchSet:
+    """The limit patches of a surface result (``config``: ``boundary``, ``patch_tolerance`` relative to the
+    diagonal, ``patch_max_level``); ExportError when the result has no mesh or the tolerance is not met.
+    Cached by geometry and options, so that export and validation share one fit."""
+    if result.kind != "surface" or result.control_mesh is None:
+        raise ExportError(f"expected a surface result, got a {result.kind} result")
+    cfg = result.config or {}
+    mesh = result.control_mesh
+    tol, boundary, level = cfg.get("patch_tolerance", PATCH_TOLERANCE), cfg.get("boundary", "all"), \
+        cfg.get("patch_max_level", 5)
+    key = (mesh.topology_key, mesh.vertices.tobytes(), repr(tol), repr(boundary), repr(level))
+    if key in _PATCH_CACHE:
+        return _PATCH_CACHE[key]
+    try:
+        patches = limit_patches(mesh, tol, boundary, level)
+    except GsrError as exc:
+        raise ExportError(f"cannot build the limit-surface patches: {str(exc).splitlines()[0]}") from None
+    if not patches.within_tolerance:
+        raise ExportError(f"the limit-surface patches deviate by {patches.max_deviation / patches.diagonal:.3g} "
+                          f"of the diagonal, above the tolerance {tol:.3g} (raise config patch_tolerance or "
+                          f"patch_max_level)")
+    if len(_PATCH_CACHE) >= 8:
+        _PATCH_CACHE.pop(next(iter(_PATCH_CACHE)))
+    _PATCH_CACHE[key] = patches
+    return patches
 
 
 @contextlib.contextmanager

@@ -43,7 +43,7 @@ from gsr_cad.ops.mesh_kernel import bbox_centre
 
 from . import hosts
 from .base import (EXACT_TOL, SAMPLE_TOL, Check, CurveSpline, Exporter, curve_history, curve_spline, expect_equal,
-                   failed, measured, point_deviation, scratch_dir, skipped)
+                   failed, measured, num, point_deviation, scratch_dir, skipped)
 
 MAX_LEVELS = 6
 _BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
@@ -338,12 +338,8 @@ if __name__ == "__main__":
 '''
 
 
-def _num(x: float) -> str:
-    return repr(float(x))
-
-
 def _vec(v: Sequence[float]) -> str:
-    return "(" + ", ".join(_num(x) for x in v) + ")"
+    return "(" + ", ".join(num(x) for x in v) + ")"
 
 
 def _mesh_call(op: Op, state: PolyMesh) -> str:
@@ -352,35 +348,31 @@ def _mesh_call(op: Op, state: PolyMesh) -> str:
     if name == "translate_vertex":
         return f"translate_vertex(bm, V, F, vertex={op.vertex}, delta={_vec(op.delta)})"
     if name in ("extrude", "translate_face"):
-        return f"{name}(bm, V, F, face={op.face}, distance={_num(op.distance)})"
+        return f"{name}(bm, V, F, face={op.face}, distance={num(op.distance)})"
     if name == "inset":
-        return f"inset(bm, V, F, face={op.face}, thickness={_num(op.thickness)})"
+        return f"inset(bm, V, F, face={op.face}, thickness={num(op.thickness)})"
     if name == "bevel":
-        return f"bevel(bm, V, F, edge={op.edge}, offset={_num(op.offset)})"
+        return f"bevel(bm, V, F, edge={op.edge}, offset={num(op.offset)})"
     if name == "edge_loop":
         return f"edge_loop(bm, V, F, edge={op.edge})"
     assert isinstance(op, Scale)
-    return f"scale(bm, V, F, factor={_num(op.factor)}, pivot={_vec(bbox_centre(state))})"
+    return f"scale(bm, V, F, factor={num(op.factor)}, pivot={_vec(bbox_centre(state))})"
 
 
-def _mesh_script(genome: Sequence[Op], template: PolyMesh, levels: int, use_limit_surface: bool, title: str,
-                 file_name: str, boundary: str = "all") -> str:
-    known = {cls.name for cls in OPS_BY_LETTER.values()}
-    for op in genome:
-        if op.name not in known:
-            raise ExportError(f"the Blender writer knows only surface ops, got {op.name!r}")
-    states = [template]
-    try:
-        for op in genome:
-            states.append(op.apply(states[-1]))
-    except OpError as exc:
-        raise ExportError(f"the genome does not replay on the template: {exc}") from None
-    name = title or "gsr_control_mesh"
+def _op_labels(genome: Sequence[Op]) -> list[str]:
+    """``"00 template"``, then ``"03 extrude face 5 by 0.42"`` for every op (numbers padded to the genome)."""
     width = max(2, len(str(len(genome))))
-    listing = "\n".join(f"    {i + 1:0{width}d} {op.describe()}" for i, op in enumerate(genome)) or "    (none)"
-    blocks = []
-    for i, op in enumerate(genome):
-        blocks.append(f"\n    # {i + 1:0{width}d} {op.describe()}\n    {_mesh_call(op, states[i])}")
+    return [f"{0:0{width}d} template"] + [f"{i + 1:0{width}d} {op.describe()}" for i, op in enumerate(genome)]
+
+
+def _mesh_script(genome: Sequence[Op], states: Sequence[PolyMesh], levels: int, use_limit_surface: bool,
+                 title: str, file_name: str, boundary: str = "all") -> str:
+    """The script text; ``states`` are the template and the mesh after every op of ``genome``."""
+    template = states[0]
+    name = title or "gsr_control_mesh"
+    labels = _op_labels(genome)[1:]
+    listing = "\n".join(f"    {label}" for label in labels) or "    (none)"
+    blocks = [f"\n    # {label}\n    {_mesh_call(op, state)}" for label, op, state in zip(labels, genome, states)]
     used: list[str] = []
     for op in genome:
         for helper in (*_MESH_HELPER_NEEDS.get(op.name, ()), op.name):
@@ -432,7 +424,16 @@ def write_blender_script(genome: Sequence[Op], template: PolyMesh, path: str | o
         raise ExportError(f"no Blender writer for a {type(template).__name__} template")
     if title and not all(ch.isalnum() or ch in " -_." for ch in title):
         raise ConfigError(f"the title may hold letters, digits, spaces, '-', '_' and '.', got {title!r}")
-    text = _mesh_script(tuple(genome), template, levels, use_limit_surface, title, Path(path).name, boundary)
+    genome = tuple(genome)
+    known = {cls.name for cls in OPS_BY_LETTER.values()}
+    for op in genome:
+        if op.name not in known:
+            raise ExportError(f"the Blender writer knows only surface ops, got {op.name!r}")
+    try:
+        states = genome_mod.replay_states(template, genome)
+    except OpError as exc:
+        raise ExportError(f"the genome does not replay on the template: {exc}") from None
+    text = _mesh_script(genome, states, levels, use_limit_surface, title, Path(path).name, boundary)
     return write_text(path, text)
 
 
@@ -593,10 +594,6 @@ class SurfaceModel:
         return self.states[-1]
 
     @property
-    def template(self) -> PolyMesh:
-        return self.states[0]
-
-    @property
     def diagonal(self) -> float:
         """Bounding-box diagonal of the limit mesh: the unit of every surface tolerance."""
         d = self.limit.diagonal
@@ -625,10 +622,9 @@ def surface_model(result: Any) -> SurfaceModel:
         raise ExportError(f"config levels must be an integer in [1, {MAX_LEVELS}], got {levels!r}")
     if boundary not in _BOUNDARY:
         raise ExportError(f"config boundary must be one of {', '.join(_BOUNDARY)}, got {boundary!r}")
-    width = max(2, len(str(len(result.genome))))
-    labels = [f"{0:0{width}d} template"] + [f"{i + 1:0{width}d} {op.describe()}" for i, op in enumerate(result.genome)]
     ops = (None, *(op.to_json() for op in result.genome))
-    return SurfaceModel(tuple(labels), ops, tuple(states), levels, boundary, limit_mesh(final, levels, boundary))
+    return SurfaceModel(tuple(_op_labels(result.genome)), ops, tuple(states), levels, boundary,
+                        limit_mesh(final, levels, boundary))
 
 
 def same_mesh(ours: PolyMesh, theirs_vertices: np.ndarray, theirs_faces: Sequence[Sequence[int]]) -> tuple[float, str]:
@@ -637,7 +633,8 @@ def same_mesh(ours: PolyMesh, theirs_vertices: np.ndarray, theirs_faces: Sequenc
     oriented cycles). ``problem`` is "" when the structure agrees (the distance is then meaningful)."""
     tv = np.asarray(theirs_vertices, dtype=float).reshape(-1, 3)
     if len(tv) != ours.n_vertices or len(theirs_faces) != ours.n_faces:
-        return math.inf, f"{len(tv)} vertices and {len(theirs_faces)} faces, expected {ours.n_vertices} and {ours.n_faces}"
+        return math.inf, (f"{len(tv)} vertices and {len(theirs_faces)} faces, "
+                          f"expected {ours.n_vertices} and {ours.n_faces}")
     dist, match = cKDTree(tv).query(ours.vertices)
     if len(np.unique(match)) != ours.n_vertices:
         return float(dist.max()), "two vertices match the same vertex"
@@ -686,10 +683,11 @@ class BlenderExporter(Exporter):
     host = "blender"
 
     def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
-        model = surface_model(result)
-        return [write_blender_script(result.genome, model.template, out_dir / self.filename(stem),
-                                     levels=model.levels, use_limit_surface=True, title=_title(stem),
-                                     boundary=model.boundary)]
+        model = surface_model(result)  # replayed and checked: levels, boundary and states are valid
+        filename = self.filename(stem)
+        text = _mesh_script(tuple(result.genome), model.states, model.levels, True, _title(stem), filename,
+                            model.boundary)
+        return [write_text(out_dir / filename, text)]
 
     def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         filename = self.filename(stem)
@@ -703,8 +701,8 @@ class BlenderExporter(Exporter):
         return None
 
     def validate_surface(self, path: Path, result: Any) -> list[Check]:
-        if hosts.find_host("blender") is None:
-            return [skipped(path, self.host, "run script", "Blender is not installed (apt-get install blender)")]
+        if reason := hosts.missing("blender"):
+            return [skipped(path, self.host, "run script", reason)]
         try:
             model = surface_model(result)
         except ExportError as exc:
@@ -735,8 +733,8 @@ class BlenderExporter(Exporter):
         return checks
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
-        if hosts.find_host("blender") is None:
-            return [skipped(path, self.host, "run script", "Blender is not installed (apt-get install blender)")]
+        if reason := hosts.missing("blender"):
+            return [skipped(path, self.host, "run script", reason)]
         spline = curve_spline(result)
         try:
             history = curve_history(result)
@@ -775,7 +773,8 @@ class BlenderExporter(Exporter):
                          [i == len(history) - 1 for i in range(len(history))]),
         ]
         if len(steps) == len(history):
-            dev = max(point_deviation(np.asarray(s["points"], dtype=float)[:, :2], h.points) for s, h in zip(steps, history))
+            dev = max(point_deviation(np.asarray(s["points"], dtype=float)[:, :2], h.points)
+                      for s, h in zip(steps, history))
             checks.append(measured(path, host, "history polygons", dev, tol, f"tolerance {tol:.3g}"))
         samples = np.asarray(data["samples"], dtype=float)
         params = np.linspace(0.0, 1.0, len(samples))

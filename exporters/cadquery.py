@@ -21,14 +21,17 @@ from __future__ import annotations
 
 import os
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from gsr_cad.atomic import write_text
 from gsr_cad.errors import ExportError
 
-from .base import Check, Exporter, curve_spline, failed, num, scratch_dir, skipped
-from .step import check_step_curve, check_step_surface, patch_statement, surface_patches
+from . import hosts
+from .base import (Check, Exporter, curve_spline, failed, num, patch_literals, scratch_dir, skipped,
+                   surface_patches)
+from .step import check_step_curve, check_step_surface, patch_statement
 
 _SCRIPT = '''"""{filename}: a gsr_cad {scheme} curve ({n} control points, degree {degree}) for CadQuery.
 
@@ -152,13 +155,9 @@ elif "show_object" in globals():
 '''
 
 
-def _patch_literal(patch) -> str:
-    rows = ", ".join("[" + ", ".join(f"({num(x)}, {num(y)}, {num(z)})" for x, y, z in row) + "]"
-                     for row in patch.poles.tolist())
-    (uk, um), (vk, vm) = patch.breakpoints_u, patch.breakpoints_v
-    lists = [", ".join(num(k) for k in uk), ", ".join(str(int(m)) for m in um),
-             ", ".join(num(k) for k in vk), ", ".join(str(int(m)) for m in vm)]
-    return f"    ([{rows}],\n     " + ", ".join(f"[{x}]" for x in lists) + "),"
+def _patch_literal(patch: Any) -> str:
+    poles, *lists = patch_literals(patch)
+    return f"    ({poles},\n     " + ", ".join(lists) + "),"
 
 
 def cadquery_python() -> Path | None:
@@ -171,22 +170,15 @@ def cadquery_python() -> Path | None:
     return next((p for p in candidates if p.is_file() and os.access(p, os.X_OK)), None)
 
 
+_NO_ENVIRONMENT = "no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)"
+
+
 def run_cadquery_script(script: Path, args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
     """Run a script with the CadQuery interpreter; ExportError when it is missing, fails or times out."""
     python = cadquery_python()
     if python is None:
-        raise ExportError("no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)")
-    try:
-        proc = subprocess.run([str(python), str(script), *args], capture_output=True, text=True, timeout=timeout,
-                              stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        raise ExportError(f"cadquery did not finish within {timeout:.0f} s") from None
-    except OSError as exc:
-        raise ExportError(f"cannot run {python}: {exc.strerror or exc}") from None
-    if proc.returncode != 0:
-        tail = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["no output"]
-        raise ExportError(f"cadquery failed (exit {proc.returncode}): {tail[0]}")
-    return proc
+        raise ExportError(_NO_ENVIRONMENT)
+    return hosts.run([python, script, *args], "cadquery", timeout)
 
 
 class CadqueryExporter(Exporter):
@@ -208,11 +200,10 @@ class CadqueryExporter(Exporter):
             mults=", ".join(str(int(m)) for m in spline.multiplicities))
         return [write_text(out_dir / filename, text)]
 
-    def validate_curve(self, path: Path, result: Any) -> list[Check]:
+    def _validate_step(self, path: Path, check: Callable[[Path], list[Check]]) -> list[Check]:
+        """Run the script to write a STEP file and judge that file with ``check``."""
         if cadquery_python() is None:
-            return [skipped(path, self.host, "run script",
-                            "no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)")]
-        spline = curve_spline(result)
+            return [skipped(path, self.host, "run script", _NO_ENVIRONMENT)]
         with scratch_dir() as tmp:
             step = tmp / "cadquery.step"
             try:
@@ -221,7 +212,11 @@ class CadqueryExporter(Exporter):
                 return [failed(path, self.host, "run script", str(exc))]
             if not step.is_file():
                 return [failed(path, self.host, "run script", "the script wrote no STEP file")]
-            return check_step_curve(step, self.host, spline, path)
+            return check(step)
+
+    def validate_curve(self, path: Path, result: Any) -> list[Check]:
+        spline = curve_spline(result)
+        return self._validate_step(path, lambda step: check_step_curve(step, self.host, spline, path))
 
     def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         patches = surface_patches(result)
@@ -234,15 +229,4 @@ class CadqueryExporter(Exporter):
         return [write_text(out_dir / filename, text)]
 
     def validate_surface(self, path: Path, result: Any) -> list[Check]:
-        if cadquery_python() is None:
-            return [skipped(path, self.host, "run script",
-                            "no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)")]
-        with scratch_dir() as tmp:
-            step = tmp / "cadquery.step"
-            try:
-                run_cadquery_script(path, [str(step)])
-            except ExportError as exc:
-                return [failed(path, self.host, "run script", str(exc))]
-            if not step.is_file():
-                return [failed(path, self.host, "run script", "the script wrote no STEP file")]
-            return check_step_surface(step, self.host, result, path)
+        return self._validate_step(path, lambda step: check_step_surface(step, self.host, result, path))

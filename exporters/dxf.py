@@ -62,8 +62,8 @@ class DxfExporter(Exporter):
         return [path]
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
-        if self.available():
-            return [skipped(path, self.host, "read", self.available())]
+        if reason := self.available():
+            return [skipped(path, self.host, "read", reason)]
         import ezdxf
 
         spline = curve_spline(result)

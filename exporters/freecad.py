@@ -29,7 +29,8 @@ from gsr_cad.geometry.polymesh import PolyMesh
 
 from . import hosts
 from .base import (EXACT_TOL, SAMPLE_TOL, Check, CurveSpline, Exporter, HistoryStep, curve_checks, curve_history,
-                   curve_spline, expect_equal, failed, measured, num, point_deviation, scratch_dir, skipped)
+                   curve_spline, expect_equal, failed, measured, num, patch_literals, point_deviation, scratch_dir,
+                   skipped, surface_patches)
 from .blender import SurfaceModel, same_mesh, surface_model, triangle_faces
 
 SAMPLES_PER_SPAN = 16
@@ -168,9 +169,18 @@ def freecad_read(source: Path, params: np.ndarray, timeout: float = 120) -> dict
 
     Raises ExportError when FreeCAD is missing or fails on the file.
     """
+    return _read_back(_curve_reader(params), source, timeout)
+
+
+def _curve_reader(params: np.ndarray) -> str:
+    return _READER.format(dump=_CURVE_DUMP, params=[float(u) for u in params])
+
+
+def _read_back(script: str, source: Path, timeout: float) -> dict[str, Any]:
+    """Run a reader ``script`` (arguments: ``source`` and the JSON file it writes) with ``freecadcmd``."""
     with scratch_dir() as tmp:
         reader, out = tmp / "read_back.py", tmp / "read.json"
-        write_text(reader, _READER.format(dump=_CURVE_DUMP, params=[float(u) for u in params]))
+        write_text(reader, script)
         hosts.run_freecad(reader, [source, out], timeout=timeout)
         try:
             return json.loads(out.read_text(encoding="utf-8"))
@@ -208,35 +218,34 @@ class FreecadMacroExporter(Exporter):
             mults=", ".join(str(int(m)) for m in spline.multiplicities))
         return [write_text(out_dir / filename, text)]
 
-    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
-        return _export_surface(self, result, out_dir, stem)
-
-    def validate_surface(self, path: Path, result: Any) -> list[Check]:
-        return _validate_surface(self, path, result)
-
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
-        if hosts.find_host("freecad") is None:
-            return [skipped(path, self.host, "run macro", "FreeCAD is not installed (apt-get install freecad)")]
+        if reason := hosts.missing("freecad"):
+            return [skipped(path, self.host, "run macro", reason)]
         spline = curve_spline(result)
         try:
             history = curve_history(result)
         except ExportError as exc:
             return [failed(path, self.host, "history", str(exc))]
         params = spline.params(SAMPLES_PER_SPAN)
+        checks, data = self._replay(path, len(history), _curve_reader(params), timeout=120)
+        return checks if data is None else checks + self._compare(path, data, history, spline, params)
+
+    def _replay(self, path: Path, n_steps: int, reader: str, timeout: float) -> tuple[list[Check], dict | None]:
+        """Run the macro to save a document and reopen that with the ``reader`` script: the checks so far
+        and what the reader saw (None when a step failed)."""
         with scratch_dir() as tmp:
             fcstd = tmp / "replayed.FCStd"
             try:
-                proc = hosts.run_freecad(path, [fcstd], timeout=120)
+                proc = hosts.run_freecad(path, [fcstd], timeout=timeout)
             except ExportError as exc:
-                return [failed(path, self.host, "run macro", str(exc))]
-            checks = [self._summary_check(path, proc.stdout, len(history))]
+                return [failed(path, self.host, "run macro", str(exc))], None
+            checks = [self._summary_check(path, proc.stdout, n_steps)]
             if not fcstd.is_file():
-                return checks + [failed(path, self.host, "saved document", "the macro saved no .FCStd")]
+                return checks + [failed(path, self.host, "saved document", "the macro saved no .FCStd")], None
             try:
-                data = freecad_read(fcstd, params)
+                return checks, _read_back(reader, fcstd, timeout)
             except ExportError as exc:
-                return checks + [failed(path, self.host, "reopen document", str(exc))]
-        return checks + self._compare(path, data, history, spline, params)
+                return checks + [failed(path, self.host, "reopen document", str(exc))], None
 
     def _summary_check(self, path: Path, stdout: str, n_steps: int) -> Check:
         for line in reversed(stdout.splitlines()):
@@ -269,6 +278,41 @@ class FreecadMacroExporter(Exporter):
         return checks + curve_checks(path, host, spline, params, degree=curve["degree"], rational=curve["rational"],
                                      poles=curve["poles"], knots=np.repeat(curve["knots"], curve["mults"]),
                                      samples=curve["samples"], param_range=curve["range"])
+
+    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
+        model = surface_model(result)
+        patch_set = surface_patches(result)
+        filename = self.filename(stem)
+        steps = ",\n".join(
+            f"    ({label!r}, {json.dumps(op) if op is not None else ''!r}, [{_rows3(state.vertices)}], "
+            f"{[list(f) for f in state.faces]!r})"
+            for label, op, state in zip(model.labels, model.ops, model.states))
+        sew_tol = max(2.0 * patch_set.max_deviation, 1e-7 * model.diagonal)
+        text = _SURFACE_MACRO.format(
+            title=f"{filename}: a gsr_cad Catmull-Clark surface with {len(result.genome)} modelling ops",
+            n_patches=len(patch_set.patches), patch_dev=patch_set.max_deviation, levels=model.levels,
+            filename=filename, doc_name=_doc_name(stem), sew_tol=float(sew_tol), steps=steps,
+            limit_points=_rows3(model.limit.vertices),
+            limit_triangles=", ".join(f"({a}, {b}, {c})" for a, b, c in triangle_faces(model.limit)),
+            patches="\n".join(_patch_text(p) for p in patch_set.patches))
+        return [write_text(out_dir / filename, text)]
+
+    def validate_surface(self, path: Path, result: Any) -> list[Check]:
+        host = self.host
+        if reason := hosts.missing("freecad"):
+            return [skipped(path, host, "run macro", reason)]
+        try:
+            model = surface_model(result)
+            patch_set = surface_patches(result)
+        except ExportError as exc:
+            return [failed(path, host, "history", str(exc))]
+        checks, data = self._replay(path, len(model.states), _SURFACE_READER.format(grid=list(PATCH_GRID)),
+                                    timeout=300)
+        if data is None:
+            return checks
+        return (checks + _check_history(path, host, data["steps"], model)
+                + _check_surface(path, host, data["surface"], patch_set, model)
+                + _check_mesh(path, host, data["mesh"], model))
 
 
 # --- Surfaces ---------------------------------------------------------------------------------------------
@@ -397,7 +441,8 @@ try:
             if s.TypeId != "Part::GeomBSplineSurface":
                 faces.append({{"type": s.TypeId}})
                 continue
-            faces.append({{"type": s.TypeId, "degrees": [s.UDegree, s.VDegree], "rational": bool(s.isURational() or s.isVRational()),
+            faces.append({{"type": s.TypeId, "degrees": [s.UDegree, s.VDegree],
+                          "rational": bool(s.isURational() or s.isVRational()),
                           "poles": [[[p.x, p.y, p.z] for p in row] for row in s.getPoles()],
                           "uknots": s.getUKnots(), "umults": s.getUMultiplicities(),
                           "vknots": s.getVKnots(), "vmults": s.getVMultiplicities(),
@@ -427,18 +472,7 @@ def _rows3(points: np.ndarray) -> str:
 
 
 def _patch_text(patch: Any) -> str:
-    ku, mu = patch.breakpoints_u
-    kv, mv = patch.breakpoints_v
-    poles = ", ".join(f"[{_rows3(row)}]" for row in patch.poles)
-    return (f"    ([{poles}], [{', '.join(num(k) for k in ku)}], {[int(m) for m in mu]}, "
-            f"[{', '.join(num(k) for k in kv)}], {[int(m) for m in mv]}, {patch.degree_u}, {patch.degree_v}),")
-
-
-def surface_patches(model: SurfaceModel) -> Any:
-    """The limit surface as B-spline patches (the STEP export's), for the control mesh of ``model``."""
-    from gsr_cad.geometry.patches import limit_patches
-
-    return limit_patches(model.control, boundary=model.boundary)
+    return f"    ({', '.join(patch_literals(patch))}, {patch.degree_u}, {patch.degree_v}),"
 
 
 def _check_surface(path: Path, host: str, data: dict | None, patch_set: Any, model: SurfaceModel) -> list[Check]:
@@ -447,9 +481,10 @@ def _check_surface(path: Path, host: str, data: dict | None, patch_set: Any, mod
     diag = model.diagonal
     exact = EXACT_TOL * max(diag, float(np.abs(model.limit.vertices).max()))
     ours = patch_set.patches
+    kind = "Solid" if patch_set.closed else "Shell"
     checks = [
-        expect_equal(path, host, "limit surface: valid closed solid" if patch_set.closed else "limit surface: valid shell",
-                     (data["type"], data["valid"], data["shells"]), ("Solid" if patch_set.closed else "Shell", True, 1)),
+        expect_equal(path, host, f"limit surface: valid {'closed solid' if patch_set.closed else 'shell'}",
+                     (data["type"], data["valid"], data["shells"]), (kind, True, 1)),
         expect_equal(path, host, "limit surface: one B-spline face per patch",
                      [f["type"] for f in data["faces"]], ["Part::GeomBSplineSurface"] * len(ours)),
     ]
@@ -521,49 +556,3 @@ def _check_history(path: Path, host: str, steps: list[dict], model: SurfaceModel
     checks.append(measured(path, host, "history control meshes", dev, EXACT_TOL * scale,
                            "every face polygon of every step"))
     return checks
-
-
-def _export_surface(exporter: FreecadMacroExporter, result: Any, out_dir: Path, stem: str) -> list[Path]:
-    model = surface_model(result)
-    patch_set = surface_patches(model)
-    filename = exporter.filename(stem)
-    steps = ",\n".join(
-        f"    ({label!r}, {json.dumps(op) if op is not None else ''!r}, [{_rows3(state.vertices)}], "
-        f"{[list(f) for f in state.faces]!r})" for label, op, state in zip(model.labels, model.ops, model.states))
-    sew_tol = max(2.0 * patch_set.max_deviation, 1e-7 * model.diagonal)
-    text = _SURFACE_MACRO.format(
-        title=f"{filename}: a gsr_cad Catmull-Clark surface with {len(result.genome)} modelling ops",
-        n_patches=len(patch_set.patches), patch_dev=patch_set.max_deviation, levels=model.levels, filename=filename,
-        doc_name=_doc_name(stem), sew_tol=float(sew_tol), steps=steps, limit_points=_rows3(model.limit.vertices),
-        limit_triangles=", ".join(f"({a}, {b}, {c})" for a, b, c in triangle_faces(model.limit)),
-        patches="\n".join(_patch_text(p) for p in patch_set.patches))
-    return [write_text(out_dir / filename, text)]
-
-
-def _validate_surface(exporter: FreecadMacroExporter, path: Path, result: Any) -> list[Check]:
-    host = exporter.host
-    if hosts.find_host("freecad") is None:
-        return [skipped(path, host, "run macro", "FreeCAD is not installed (apt-get install freecad)")]
-    try:
-        model = surface_model(result)
-        patch_set = surface_patches(model)
-    except ExportError as exc:
-        return [failed(path, host, "history", str(exc))]
-    with scratch_dir() as tmp:
-        fcstd = tmp / "replayed.FCStd"
-        try:
-            proc = hosts.run_freecad(path, [fcstd], timeout=300)
-        except ExportError as exc:
-            return [failed(path, host, "run macro", str(exc))]
-        checks = [exporter._summary_check(path, proc.stdout, len(model.states))]
-        if not fcstd.is_file():
-            return checks + [failed(path, host, "saved document", "the macro saved no .FCStd")]
-        reader, out = tmp / "read_back.py", tmp / "read.json"
-        write_text(reader, _SURFACE_READER.format(grid=list(PATCH_GRID)))
-        try:
-            hosts.run_freecad(reader, [fcstd, out], timeout=300)
-            data = json.loads(out.read_text(encoding="utf-8"))
-        except (ExportError, OSError, ValueError) as exc:
-            return checks + [failed(path, host, "reopen document", str(exc).splitlines()[0] if str(exc) else "")]
-    return (checks + _check_history(path, host, data["steps"], model)
-            + _check_surface(path, host, data["surface"], patch_set, model) + _check_mesh(path, host, data["mesh"], model))

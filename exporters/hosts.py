@@ -15,6 +15,7 @@ from pathlib import Path
 from gsr_cad.errors import ExportError
 
 _EXECUTABLES = {"blender": "blender", "freecad": "freecadcmd", "openscad": "openscad"}
+_NAMES = {"blender": "Blender", "freecad": "FreeCAD", "openscad": "OpenSCAD"}
 
 
 def find_host(name: str) -> str | None:
@@ -25,11 +26,13 @@ def find_host(name: str) -> str | None:
     return shutil.which(_EXECUTABLES[name])
 
 
-def _run(cmd: list[str], host: str, timeout: float, cwd: str | None = None) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env.setdefault("QT_QPA_PLATFORM", "offscreen")
+def run(cmd: Sequence[str], host: str, timeout: float,
+        env: Mapping[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Run ``cmd`` headless (``env`` added to the environment); ExportError naming ``host`` when it cannot
+    start, times out or exits non-zero (with the last line of its output)."""
+    full_env = {"QT_QPA_PLATFORM": "offscreen", **os.environ, **(env or {})}
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=env,
+        proc = subprocess.run(list(map(str, cmd)), capture_output=True, text=True, timeout=timeout, env=full_env,
                               stdin=subprocess.DEVNULL)
     except subprocess.TimeoutExpired:
         raise ExportError(f"{host} did not finish within {timeout:.0f} s") from None
@@ -41,10 +44,19 @@ def _run(cmd: list[str], host: str, timeout: float, cwd: str | None = None) -> s
     return proc
 
 
+def _not_installed(name: str) -> str:
+    return f"{_NAMES[name]} is not installed (apt-get install {_EXECUTABLES[name].removesuffix('cmd')})"
+
+
+def missing(name: str) -> str | None:
+    """None when a host is installed, else the reason to report (with the Debian package that brings it)."""
+    return None if find_host(name) is not None else _not_installed(name)
+
+
 def _require(name: str) -> str:
     exe = find_host(name)
     if exe is None:
-        raise ExportError(f"{name} is not installed (Debian: apt-get install {_EXECUTABLES[name].replace('cmd', '')})")
+        raise ExportError(_not_installed(name))
     return exe
 
 
@@ -52,19 +64,14 @@ def run_blender(script: str | Path, args: Sequence[str] = (), timeout: float = 6
     """Run a Python script in background Blender; a Python exception in it is a failure (exit 1)."""
     exe = _require("blender")
     cmd = [exe, "-b", "--factory-startup", "--python-exit-code", "1", "--python", str(script), "--", *map(str, args)]
-    return _run(cmd, "blender", timeout)
+    return run(cmd, "blender", timeout)
 
 
 def run_freecad(script: str | Path, args: Sequence[str] = (), timeout: float = 600) -> subprocess.CompletedProcess:
     """Run a macro with ``freecadcmd``; scripts must ``raise SystemExit(1)`` themselves on failure
     (FreeCAD 0.20 exits 0 on an uncaught exception), and arguments reach them through ``GSR_ARGS``."""
     exe = _require("freecad")
-    env_args = os.pathsep.join(map(str, args))
-    os.environ["GSR_ARGS"] = env_args
-    try:
-        return _run([exe, str(script)], "freecad", timeout)
-    finally:
-        os.environ.pop("GSR_ARGS", None)
+    return run([exe, script], "freecad", timeout, env={"GSR_ARGS": os.pathsep.join(map(str, args))})
 
 
 def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600,
@@ -75,4 +82,4 @@ def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600,
     exe = _require("openscad")
     extra = [arg for name, value in (defines or {}).items() for arg in ("-D", f"{name}={value}")]
     extra += list(options)
-    return _run([exe, *extra, "-o", str(out), str(scad)], "openscad", timeout)
+    return run([exe, *extra, "-o", out, scad], "openscad", timeout)

@@ -189,8 +189,8 @@ class OpenscadExporter(Exporter):
         return [write_text(out_dir / filename, text)]
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
-        if hosts.find_host("openscad") is None:
-            return [skipped(path, self.host, "render", "OpenSCAD is not installed (apt-get install openscad)")]
+        if reason := hosts.missing("openscad"):
+            return [skipped(path, self.host, "render", reason)]
         spline = curve_spline(result)
         width = stroke_width(spline)
         checks: list[Check] = []
@@ -202,11 +202,12 @@ class OpenscadExporter(Exporter):
                 try:
                     hosts.run_openscad(path, stl, timeout=120, defines={"part": f'"{part}"', "width": num(width),
                                                                         "height": num(_HEIGHT)})
-                    vertices, triangles = _read_stl(stl)
+                    mesh = _load_stl(stl, allow_empty=True)
                 except ExportError as exc:
                     checks.append(failed(path, self.host, f"render {part}", str(exc)))
                     continue
-                checks += self._compare(path, part, ours, half, sag, vertices, triangles, inner, spline)
+                checks += self._compare(path, part, ours, half, sag, np.asarray(mesh.vertices, dtype=float),
+                                        np.asarray(mesh.faces, dtype=np.int64), inner, spline)
         return checks
 
     def _compare(self, path: Path, part: str, ours: str, half: float, sag: float, vertices: np.ndarray,
@@ -227,14 +228,13 @@ class OpenscadExporter(Exporter):
                      f"{len(inner)} points; deviation = farthest outside"),
         ]
 
-
     def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         model = surface_model(result)
         return [write_text(out_dir / self.filename(stem), surface_scad(model, self.filename(stem)))]
 
     def validate_surface(self, path: Path, result: Any) -> list[Check]:
-        if hosts.find_host("openscad") is None:
-            return [skipped(path, self.host, "render", "OpenSCAD is not installed (apt-get install openscad)")]
+        if reason := hosts.missing("openscad"):
+            return [skipped(path, self.host, "render", reason)]
         try:
             model = surface_model(result)
         except ExportError as exc:
@@ -288,8 +288,7 @@ CAGE_WIDTH_FRACTION = 0.005
 
 def scad_centre(model: SurfaceModel) -> np.ndarray:
     """The point the ``.scad`` stores coordinates relative to: the limit mesh's bounding-box centre."""
-    lo, hi = model.limit.bbox
-    return 0.5 * (np.asarray(lo) + np.asarray(hi))
+    return model.limit.bbox.mean(axis=0)
 
 
 def _signed_volume(v: np.ndarray, tri: np.ndarray) -> float:
@@ -382,25 +381,15 @@ def surface_scad(model: SurfaceModel, filename: str) -> str:
         cage_edges=_index_rows(edges))
 
 
-def _load_stl(path: Path) -> Any:
-    """OpenSCAD's STL as a trimesh (vertices merged); ExportError when unreadable or empty."""
+def _load_stl(path: Path, allow_empty: bool = False) -> Any:
+    """OpenSCAD's STL as a trimesh (vertices merged); ExportError when unreadable or (unless
+    ``allow_empty``) empty."""
     import trimesh
 
     try:
         mesh = trimesh.load(str(path), file_type="stl", force="mesh", process=True)
     except Exception as exc:  # trimesh raises assorted errors on broken files
         raise ExportError(f"cannot read OpenSCAD's STL: {exc}") from None
-    if len(mesh.faces) == 0:
+    if len(mesh.faces) == 0 and not allow_empty:
         raise ExportError("OpenSCAD rendered nothing")
     return mesh
-
-
-def _read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and triangles of an STL file (trimesh, vertices merged); ExportError when unreadable."""
-    import trimesh
-
-    try:
-        mesh = trimesh.load(str(path), file_type="stl", force="mesh", process=True)
-    except Exception as exc:  # trimesh raises assorted errors on broken files
-        raise ExportError(f"cannot read OpenSCAD's STL: {exc}") from None
-    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)

@@ -30,17 +30,15 @@ from typing import Any
 import numpy as np
 
 from gsr_cad.atomic import atomic_path, write_text
-from gsr_cad.errors import ExportError, GsrError
-from gsr_cad.geometry.patches import PatchSet, limit_grids, limit_patches
+from gsr_cad.errors import ExportError
+from gsr_cad.geometry.patches import PatchSet, limit_grids
 
 from . import hosts
 from .base import (Check, CurveSpline, Exporter, curve_checks, curve_spline, expect_equal, failed, measured,
-                   skipped)
+                   skipped, surface_patches)
 from .freecad import freecad_read
 
 SAMPLES_PER_SPAN = 16
-PATCH_TOLERANCE = 1e-4
-"""Default largest deviation of the patches from the limit surface, relative to its diagonal."""
 SEW_TOLERANCE = 1e-7
 """Sewing tolerance relative to the diagonal: shared patch edges are the same curve up to rounding."""
 DEVIATION_SLACK = 1e-9
@@ -68,22 +66,12 @@ def read_step_curves(path: Path, params: np.ndarray) -> list[StepCurve]:
     """
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.GeomAbs import GeomAbs_BSplineCurve
-    from OCP.IFSelect import IFSelect_RetDone
-    from OCP.STEPControl import STEPControl_Reader
     from OCP.TopAbs import TopAbs_EDGE
-    from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    reader = STEPControl_Reader()
-    if reader.ReadFile(str(path)) != IFSelect_RetDone:
-        raise ExportError(f"OCP cannot read {path.name} as STEP")
-    reader.TransferRoots()
-    shape = reader.OneShape()
     curves = []
-    explorer = TopExp_Explorer(shape, TopAbs_EDGE)
-    while explorer.More():
-        adaptor = BRepAdaptor_Curve(TopoDS.Edge(explorer.Current()))
-        explorer.Next()
+    for edge in _sub_shapes(read_step_shape(path), TopAbs_EDGE):
+        adaptor = BRepAdaptor_Curve(TopoDS.Edge(edge))
         if adaptor.GetType() != GeomAbs_BSplineCurve:
             raise ExportError(f"{path.name} holds an edge that is not a B-spline")
         c = adaptor.BSpline()
@@ -171,36 +159,6 @@ def write_step(shape: Any, path: Path, name: str, description: str = "") -> None
         raise ExportError(f"OCCT could not write {path.name}")
 
 
-_PATCH_CACHE: dict[tuple, PatchSet] = {}
-
-
-def surface_patches(result: Any) -> PatchSet:
-    """The limit patches of a surface result (``config``: ``boundary``, ``patch_tolerance`` relative to the
-    diagonal, ``patch_max_level``); ExportError when the result has no mesh or the tolerance is not met.
-    Cached by geometry and options, so that export and validation share one fit."""
-    if result.kind != "surface" or result.control_mesh is None:
-        raise ExportError(f"expected a surface result, got a {result.kind} result")
-    cfg = result.config or {}
-    mesh = result.control_mesh
-    tol, boundary, level = cfg.get("patch_tolerance", PATCH_TOLERANCE), cfg.get("boundary", "all"), \
-        cfg.get("patch_max_level", 5)
-    key = (mesh.topology_key, mesh.vertices.tobytes(), repr(tol), repr(boundary), repr(level))
-    if key in _PATCH_CACHE:
-        return _PATCH_CACHE[key]
-    try:
-        patches = limit_patches(mesh, tol, boundary, level)
-    except GsrError as exc:
-        raise ExportError(f"cannot build the limit-surface patches: {str(exc).splitlines()[0]}") from None
-    if not patches.within_tolerance:
-        raise ExportError(f"the limit-surface patches deviate by {patches.max_deviation / patches.diagonal:.3g} "
-                          f"of the diagonal, above the tolerance {tol:.3g} (raise config patch_tolerance or "
-                          f"patch_max_level)")
-    if len(_PATCH_CACHE) >= 8:
-        _PATCH_CACHE.pop(next(iter(_PATCH_CACHE)))
-    _PATCH_CACHE[key] = patches
-    return patches
-
-
 def patch_statement(patches: PatchSet) -> str:
     """One line stating what the patches achieve (the STEP header's description)."""
     return (f"gsr_cad Catmull-Clark limit surface: {len(patches.patches)} bicubic B-spline patches "
@@ -241,7 +199,6 @@ def patch_shape(patches: PatchSet) -> Any:
     from OCP.BRepCheck import BRepCheck_Analyzer
     from OCP.BRepLib import BRepLib
     from OCP.TopAbs import TopAbs_SHELL
-    from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
     sewing = BRepBuilderAPI_Sewing(SEW_TOLERANCE * patches.diagonal)
@@ -253,11 +210,7 @@ def patch_shape(patches: PatchSet) -> Any:
         raise ExportError(f"OCCT rejected the patches: {exc}") from None
     shape = sewing.SewedShape()
     if patches.closed:
-        shells = []
-        explorer = TopExp_Explorer(shape, TopAbs_SHELL)
-        while explorer.More():
-            shells.append(TopoDS.Shell(explorer.Current()))
-            explorer.Next()
+        shells = [TopoDS.Shell(s) for s in _sub_shapes(shape, TopAbs_SHELL)]
         if len(shells) != 1 or sewing.NbFreeEdges() or sewing.NbMultipleEdges():
             raise ExportError(f"sewing the patches gave {len(shells)} shells, {sewing.NbFreeEdges()} free and "
                               f"{sewing.NbMultipleEdges()} multiple edges instead of one closed shell")
@@ -384,10 +337,8 @@ class StepExporter(Exporter):
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
         """OCP reads the file back; FreeCAD, when installed, reads it too (an independent OCCT build)."""
         spline = curve_spline(result)
-        if importlib.util.find_spec("OCP") is None:
-            checks = [skipped(path, self.host, "read", "OCP is not installed (pip install 'gsr-cad[cad]')")]
-        else:
-            checks = check_step_curve(path, self.host, spline)
+        reason = self.available()
+        checks = [skipped(path, self.host, "read", reason)] if reason else check_step_curve(path, self.host, spline)
         return checks + check_step_in_freecad(path, spline)
 
     def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
@@ -403,15 +354,15 @@ class StepExporter(Exporter):
         return [path, sidecar]
 
     def validate_surface(self, path: Path, result: Any) -> list[Check]:
-        if importlib.util.find_spec("OCP") is None:
-            return [skipped(path, self.host, "read", "OCP is not installed (pip install 'gsr-cad[cad]')")]
+        if reason := self.available():
+            return [skipped(path, self.host, "read", reason)]
         return check_step_surface(path, self.host, result, stated=stated_deviation(path))
 
 
 def check_step_in_freecad(path: Path, spline: CurveSpline) -> list[Check]:
     """Read a STEP file with ``freecadcmd`` and compare its one B-spline edge with ``spline``."""
-    if hosts.find_host("freecad") is None:
-        return [skipped(path, "freecad", "read", "FreeCAD is not installed (apt-get install freecad)")]
+    if reason := hosts.missing("freecad"):
+        return [skipped(path, "freecad", "read", reason)]
     params = spline.params(SAMPLES_PER_SPAN)
     try:
         curves = freecad_read(path, params)["curves"]

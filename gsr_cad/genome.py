@@ -9,18 +9,11 @@ from collections.abc import Iterable, Sequence
 from typing import Any, TypeVar
 
 from .errors import InputError, OpError
-from .ops.base import Op, op_from_json
+from .ops.base import Op, op_from_json, replay
 
 S = TypeVar("S")
 Genome = tuple[Op, ...]
-
-
-def replay(template: S, genome: Iterable[Op]) -> S:
-    """Apply every op in order; raises OpError at the first op that cannot apply."""
-    state = template
-    for op in genome:
-        state = op.apply(state)
-    return state
+__all__ = ["Genome", "from_json", "is_valid", "repair", "replay", "replay_states", "to_json"]
 
 
 def replay_states(template: S, genome: Iterable[Op]) -> list[S]:

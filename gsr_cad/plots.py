@@ -171,15 +171,18 @@ def _draw_convergence(ax, history: Sequence[dict[str, Any]], interrupted: bool, 
     ax.legend(loc="best", fontsize=8)
 
 
+def _save(fig: Figure, path: str | os.PathLike[str], dpi: int) -> Path:
+    """Write ``fig`` to ``path`` atomically, in the format its suffix names (PNG without one)."""
+    target_path = Path(path)
+    with atomic_path(target_path) as tmp:
+        fig.savefig(tmp, format=target_path.suffix.lstrip(".").lower() or "png", dpi=dpi)
+    return target_path
+
+
 def curve_report(result: Result, target_points: np.ndarray, path: str | os.PathLike[str],
                  truth: np.ndarray | None = None, *, title: str | None = None, dpi: int = 110) -> Path:
     """Write :func:`curve_figure` to ``path`` atomically (format from the suffix, PNG by default); returns it."""
-    fig = curve_figure(result, target_points, truth, title=title)
-    target_path = Path(path)
-    fmt = target_path.suffix.lstrip(".").lower() or "png"
-    with atomic_path(target_path) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=dpi)
-    return target_path
+    return _save(curve_figure(result, target_points, truth, title=title), path, dpi)
 
 
 def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | None = None, *,
@@ -187,10 +190,10 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas.
 
     Rows: (1) result curve over the target points, coloured by the target's distance to it
-    (:func:`deviation_along_curve`) in % of the target's bbox diagonal (red near, blue far, as in the paper); (2) the result control polygon over the
-    ground-truth polygon when given; (3) the genome as bars in order (yellow add_point, red move_point of
-    height = distance moved); (4) best and mean fitness per generation (log scale). Works for interrupted
-    results, empty histories and genomes of any length.
+    (:func:`deviation_along_curve`) in % of the target's bbox diagonal (red near, blue far, as in the paper);
+    (2) the result control polygon over the ground-truth polygon when given; (3) the genome as bars in order
+    (yellow add_point, red move_point of height = distance moved); (4) best and mean fitness per generation
+    (log scale). Works for interrupted results, empty histories and genomes of any length.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection
@@ -281,16 +284,11 @@ def _limit_distances(control, target, levels: int, boundary: str) -> tuple[Any, 
     """``(limit mesh, its triangles, distance of each limit vertex to the target)``; the distances are all
     zero when no target is known."""
     from .geometry.subdivision import get_catmull_clark
-    from .geometry.surface_distance import cloud_distance, triangulate
 
     cc = get_catmull_clark(control, levels, boundary)
     limit = cc.limit(control.vertices)
-    tris = triangulate(cc.corners, cc.offsets)
-    if target is None:
-        return limit, tris, np.zeros(limit.n_vertices)
-    if target.triangle_set is not None:
-        return limit, tris, target.triangle_set.closest(limit.vertices).distance
-    return limit, tris, cloud_distance(limit.vertices, target.points, target.sampling_radius, target.kdtree)[0]
+    tris = cc.triangles
+    return limit, tris, np.zeros(limit.n_vertices) if target is None else target.closest(limit.vertices)[0]
 
 
 def _draw_surface(ax, control, limit, tris: np.ndarray, dist: np.ndarray, norm, cmap, title: str) -> None:
@@ -365,7 +363,8 @@ def surface_figure(result: Result, target=None, snapshots: Sequence[Any] | None 
     target_info = cfg.get("target")
     name = title or (target_info.get("name") if isinstance(target_info, dict) else None) or "surface"
     ops = m.get("ops") if isinstance(m.get("ops"), str) else ""
-    fig.suptitle(f"{name}  (Catmull-Clark, level-{levels} limit; ops {run_length(ops) or '-'})\n{_subtitle(result, 110)}",
+    fig.suptitle(f"{name}  (Catmull-Clark, level-{levels} limit; ops {run_length(ops) or '-'})\n"
+                 f"{_subtitle(result, 110)}",
                  fontsize=11)
     return fig
 
@@ -385,9 +384,4 @@ def run_length(letters: str) -> str:
 def surface_report(result: Result, path: str | os.PathLike[str], target=None, snapshots: Sequence[Any] | None = None,
                    *, title: str | None = None, dpi: int = 110) -> Path:
     """Write :func:`surface_figure` to ``path`` atomically (format from its suffix) and return the path."""
-    fig = surface_figure(result, target, snapshots, title=title)
-    target_path = Path(path)
-    fmt = target_path.suffix.lstrip(".").lower() or "png"
-    with atomic_path(target_path) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=dpi)
-    return target_path
+    return _save(surface_figure(result, target, snapshots, title=title), path, dpi)

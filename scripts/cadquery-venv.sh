@@ -4,15 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv="${GSR_CADQUERY_VENV:-.venv-cadquery}"
-py="${PYTHON:-}"
-if [ -z "$py" ]; then
-  for cand in python3.12 python3.11 python3.13 python3; do
-    if command -v "$cand" >/dev/null && "$cand" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; then
-      py="$cand"; break
-    fi
-  done
-fi
-[ -n "$py" ] || { echo "error: Python >= 3.11 not found" >&2; exit 2; }
+. scripts/_python.sh
+pick_python python3.12 python3.11 python3.13 python3
 if [ ! -x "$venv/bin/python" ]; then
   "$py" -m venv "$venv"
   "$venv/bin/python" -m pip install -q --upgrade pip

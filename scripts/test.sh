@@ -5,5 +5,4 @@ cd "$(dirname "$0")/.."
 bash scripts/install-hosts.sh
 bash scripts/venv.sh "dev,cad,dask"
 bash scripts/cadquery-venv.sh || echo "CadQuery venv: install failed; the CadQuery round-trip tests will skip"
-.venv/bin/lint-imports --config pyproject.toml
 exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" --dist loadgroup "$@"

@@ -3,15 +3,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extras="${1:-}"
-py="${PYTHON:-}"
-if [ -z "$py" ]; then
-  for cand in python3.11 python3.12 python3.13 python3; do
-    if command -v "$cand" >/dev/null && "$cand" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
-      py="$cand"; break
-    fi
-  done
-fi
-[ -n "$py" ] || { echo "error: Python >= 3.11 not found" >&2; exit 2; }
+. scripts/_python.sh
+pick_python python3.11 python3.12 python3.13 python3
 if [ ! -x .venv/bin/python ]; then
   if ! "$py" -m venv .venv 2>/dev/null; then
     rm -rf .venv

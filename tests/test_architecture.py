@@ -1,5 +1,6 @@
 """Layering contracts (import-linter) and packaging rules."""
 
+import ast
 import importlib.util
 import shutil
 import subprocess
@@ -12,11 +13,12 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def test_import_layers_hold():
-    exe = shutil.which("lint-imports") or str(Path(sys.executable).with_name("lint-imports"))
-    if not Path(exe).exists():
+    beside = Path(sys.executable).with_name("lint-imports")  # this venv's, before any other on PATH
+    exe = str(beside) if beside.exists() else shutil.which("lint-imports")
+    if exe is None:
         pytest.skip("import-linter is not installed (pip install -e '.[dev]')")
     proc = subprocess.run([exe, "--config", str(REPO / "pyproject.toml")], capture_output=True, text=True, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout[-3000:]
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
 
 
 def test_no_bare_exporters_package_installed(tmp_path):
@@ -27,33 +29,60 @@ def test_no_bare_exporters_package_installed(tmp_path):
     assert importlib.util.find_spec("gsr_cad.exporters") is not None
 
 
-def _imports(path: Path) -> set[str]:
-    import ast
-
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+def _imports(path: Path, root: Path = REPO) -> set[str]:
+    """Every module name ``path`` imports (and ``module.name`` for each ``from module import name``), relative
+    imports resolved against the installed layout, where ``exporters/`` is ``gsr_cad.exporters``."""
+    parts = path.relative_to(root).with_suffix("").parts
+    if parts[0] == "exporters":
+        parts = ("gsr_cad", *parts)
     names: set[str] = set()
-    for node in ast.walk(tree):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             names.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                parts = path.relative_to(REPO).with_suffix("").parts[:-node.level]
-                base = ".".join([*parts, base]) if base else ".".join(parts)
+            base = ".".join([*parts[:-node.level], node.module or ""]).strip(".") if node.level else node.module
             names.add(base)
             names.update(f"{base}.{a.name}" for a in node.names)
     return names
+
+
+def _reaches_exporters(name: str) -> bool:
+    head = name.split(".")
+    return head[0] == "exporters" or head[:2] == ["gsr_cad", "exporters"]
+
+
+def _reaches_cli(name: str) -> bool:
+    return name.split(".")[:2] == ["gsr_cad", "cli"]
+
+
+def test_import_scan_resolves_relative_imports(tmp_path):
+    """The scan below sees relative imports of the exporters from gsr_cad and of the CLI from the exporters."""
+    (tmp_path / "gsr_cad" / "cli").mkdir(parents=True)
+    (tmp_path / "exporters").mkdir()
+    cli = tmp_path / "gsr_cad" / "cli" / "run.py"
+    cli.write_text("from ..exporters import step\nfrom . import formats\n")
+    package = tmp_path / "gsr_cad" / "__init__.py"
+    package.write_text("from . import exporters\nimport numpy\n")
+    exporter = tmp_path / "exporters" / "step.py"
+    exporter.write_text("from ..cli import main\nfrom .base import Exporter\n")
+    assert any(map(_reaches_exporters, _imports(cli, tmp_path)))
+    assert any(map(_reaches_exporters, _imports(package, tmp_path)))
+    assert {"gsr_cad.cli.formats", "numpy"} <= _imports(cli, tmp_path) | _imports(package, tmp_path)
+    assert any(map(_reaches_cli, _imports(exporter, tmp_path)))
+    assert "gsr_cad.exporters.base.Exporter" in _imports(exporter, tmp_path)
 
 
 def test_nothing_in_gsr_cad_imports_the_exporters():
     """Exporters sit on top and are found through entry points; import-linter cannot see the package-dir
     mapping, so this rule is checked on the source directly."""
     offenders = [str(p.relative_to(REPO)) for p in (REPO / "gsr_cad").rglob("*.py")
-                 if any(n == "exporters" or n.startswith(("exporters.", "gsr_cad.exporters")) for n in _imports(p))]
+                 if any(map(_reaches_exporters, _imports(p)))]
     assert offenders == []
 
 
 def test_exporters_import_only_gsr_cad_downward():
+    """Not the CLI above them, and never a top-level ``exporters`` (it is not installed)."""
     for path in (REPO / "exporters").rglob("*.py"):
         for name in _imports(path):
-            assert not name.startswith("gsr_cad.cli"), f"{path.name} imports the CLI ({name})"
+            assert not _reaches_cli(name), f"{path.name} imports the CLI ({name})"
+            assert name.split(".")[0] != "exporters", f"{path.name} imports a top-level exporters ({name})"

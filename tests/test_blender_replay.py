@@ -16,6 +16,7 @@ from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError, ExportError, OpError
 from gsr_cad.exporters.blender import write_blender_script
 from gsr_cad.exporters.hosts import find_host, run_blender
+from gsr_cad.geometry import subdivision
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.ops.mesh import OPS_BY_LETTER, Bevel, EdgeLoop, Extrude, Inset, Scale, random_op
 
@@ -143,7 +144,6 @@ def test_genomes_cover_every_op_and_random_ops_are_mostly_valid(replayed):
 @pytest.mark.blender
 @pytest.mark.xdist_group("blender")  # one Blender run under --dist loadgroup
 def test_modifier_matches_catmull_clark(replayed):
-    subdivision = pytest.importorskip("gsr_cad.geometry.subdivision")
     cases, results, _ = replayed
     checked = collections.Counter()
     for case, result in zip(cases, results):

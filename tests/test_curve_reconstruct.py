@@ -45,6 +45,15 @@ def test_seed_reproducible_and_json_round_trip(tmp_path):
     assert back.genome == a.genome
     np.testing.assert_array_equal(back.control_points, a.control_points)
     assert [h["generation"] for h in back.history] == [h["generation"] for h in a.history]
+    assert back.seed == 7
+
+
+def test_a_run_without_seed_records_the_seed_it_drew():
+    _, pts = bspline_points(5, m=100, seed=6)
+    target = curve_target(pts, "wave")
+    a = reconstruct_curve(target, **FAST)
+    assert isinstance(a.seed, int) and a.config["target"]["name"] == "wave"
+    assert reconstruct_curve(pts, seed=a.seed, **FAST).genome == a.genome
 
 
 def test_paper_preset_runs_the_papers_ga():

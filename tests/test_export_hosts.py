@@ -9,6 +9,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from conftest import failures
 from test_export_results import hand_result, polygon_result, reconstructed_result
 
 from gsr_cad.errors import ExportError
@@ -30,10 +31,6 @@ LOOP = np.array([[0, 0], [6, 0], [7, 4], [3, 5], [2, 1], [8, -1], [10, 2]], dtyp
 
 def statuses(checks) -> dict[str, str]:
     return {f"{c.host}:{c.check}": c.status for c in checks}
-
-
-def failures(checks) -> list[str]:
-    return [f"{c.check}: {c.detail}" for c in checks if c.passed is False]
 
 
 @pytest.fixture(scope="module")

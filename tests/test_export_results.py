@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import BSpline
 
-from gsr_cad.errors import ExportError
+from gsr_cad.errors import ExportError, OpError
 from gsr_cad.exporters import base
 from gsr_cad.ops import curve as curve_ops
 from gsr_cad.reconstruct.result import Result
@@ -31,7 +31,7 @@ def hand_result(seed: int = 0, scheme: str = "bspline", n_ops: int = 8, scale: f
         op = curve_ops.random_op(rng, state, move_scale=0.2, local_add=True)
         try:
             state = op.apply(state)
-        except Exception:  # an op that would leave the box: draw another
+        except OpError:  # an op that would leave the box: draw another
             continue
         genome.append(op)
     config = {"scheme": scheme, "template": template.points.tolist(),

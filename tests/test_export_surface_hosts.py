@@ -12,6 +12,7 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import failures, statuses
 from test_export_results import hand_result
 
 from gsr_cad import genome as genome_mod
@@ -34,17 +35,10 @@ def surface_result(ops=OPS, size: float = 2.0, center=(10.0, -5.0, 3.0)) -> Resu
     """A surface Result as `gsr surface` saves it, built by replaying ``ops`` on a cube."""
     cube = unit_cube(size, center)
     config = {"levels": 2, "boundary": "all",
-              "template": {"source": "cube", "vertices": cube.vertices.tolist(), "faces": [list(f) for f in cube.faces]}}
+              "template": {"source": "cube", "vertices": cube.vertices.tolist(),
+                           "faces": [list(f) for f in cube.faces]}}
     return Result(kind="surface", config=config, seed=None, genome=tuple(ops), metrics={}, history=[],
                   control_mesh=genome_mod.replay(cube, ops))
-
-
-def failures(checks) -> list[str]:
-    return [f"{c.check}: {c.detail}" for c in checks if c.passed is False]
-
-
-def names(checks) -> dict[str, str]:
-    return {c.check: c.status for c in checks}
 
 
 def _need(host: str) -> None:
@@ -135,7 +129,7 @@ def test_blender_surface_changed_op_fails(exported, tmp_path):
     assert "extrude(bm, V, F, face=5, distance=0.42)" in text
     edited = tmp_path / "edited_blender.py"
     edited.write_text(text.replace("face=5, distance=0.42", "face=5, distance=0.45"), encoding="utf-8")
-    got = names(BlenderExporter().validate(edited, result))
+    got = statuses(BlenderExporter().validate(edited, result))
     assert got["control vertices"] == "FAIL"
 
 
@@ -145,7 +139,7 @@ def test_openscad_surface_is_a_watertight_solid_equal_to_our_limit_mesh(exported
     result, _, files = exported
     checks = OpenscadExporter().validate(files[".scad"], result)
     assert failures(checks) == []
-    got = names(checks)
+    got = statuses(checks)
     for check in ("watertight", "volume sign", "volume", "limit mesh (level 2) vertices and triangles",
                   "control cage vertices"):
         assert got[check] == "pass"
@@ -160,13 +154,13 @@ def test_openscad_moved_vertex_and_flipped_faces_fail(exported, tmp_path):
     end = text.index(",", start)
     moved = tmp_path / "moved.scad"
     moved.write_text(text[:start] + repr(float(text[start:end]) + 1e-3) + text[end:], encoding="utf-8")
-    assert names(OpenscadExporter().validate(moved, result))["limit mesh (level 2) vertices and triangles"] == "FAIL"
+    assert statuses(OpenscadExporter().validate(moved, result))["limit mesh (level 2) vertices and triangles"] == "FAIL"
     head, body = text.split("gsr_limit_faces = [\n", 1)
     faces, tail = body.split("\n];", 1)
     flipped_faces = re.sub(r"\[(\d+), (\d+), (\d+)\]", r"[\3, \2, \1]", faces)
     flipped = tmp_path / "flipped.scad"
     flipped.write_text(head + "gsr_limit_faces = [\n" + flipped_faces + "\n];" + tail, encoding="utf-8")
-    assert names(OpenscadExporter().validate(flipped, result))["volume sign"] == "FAIL"
+    assert statuses(OpenscadExporter().validate(flipped, result))["volume sign"] == "FAIL"
 
 
 @pytest.mark.freecad
@@ -175,7 +169,7 @@ def test_freecad_surface_macro_history_patches_and_mesh(exported):
     result, _, files = exported
     checks = FreecadMacroExporter().validate(files[".FCMacro"], result)
     assert failures(checks) == []
-    got = names(checks)
+    got = statuses(checks)
     for check in ("JSON summary", "one object per op", "op labels", "op records", "only the last step visible",
                   "history control meshes", "limit surface: valid closed solid", "limit surface: poles",
                   "limit surface: volume positive", "limit mesh (level 2)"):
@@ -192,7 +186,7 @@ def test_freecad_changed_op_fails(exported, tmp_path):
     edited = tmp_path / "edited.FCMacro"
     edited.write_text(text.replace("'01 extrude face 5 by 0.42'", "'01 extrude face 5 by 0.5'")
                       .replace('"distance": 0.42}', '"distance": 0.5}'), encoding="utf-8")
-    got = names(FreecadMacroExporter().validate(edited, result))
+    got = statuses(FreecadMacroExporter().validate(edited, result))
     assert got["op labels"] == "FAIL" and got["op records"] == "FAIL"
 
 
@@ -213,7 +207,8 @@ def test_gsr_validate_passes_then_reports_a_damaged_file(gsr, exported, tmp_path
     pos = text.index("gsr_cage_points = [\n  [") + len("gsr_cage_points = [\n  [")
     scad.write_text(text[:pos] + "0.5 + " + text[pos:], encoding="utf-8")
     run = gsr("validate", copy)
-    assert run.code == 1 and "FAIL" in run.out
+    failed = [row for row in run.out.splitlines() if " FAIL " in row]
+    assert run.code == 1 and failed and all(row.startswith(scad.name) for row in failed)
 
 
 @pytest.mark.blender
@@ -226,7 +221,7 @@ def test_blender_curve_script_rebuilds_history_and_nurbs(tmp_path, scheme):
     (path,) = exporter.export(result, tmp_path, "curve")
     checks = exporter.validate(path, result)
     assert failures(checks) == []
-    got = names(checks)
+    got = statuses(checks)
     for check in ("NURBS settings", "poles", "weights", "one object per op", "op labels",
                   "only the last step visible", "history polygons"):
         assert got[check] == "pass"
@@ -235,6 +230,7 @@ def test_blender_curve_script_rebuilds_history_and_nurbs(tmp_path, scheme):
     op = result.genome[-1].to_json()
     assert f"# {len(result.genome):02d} " in text and (f"{op['op']}(points, {op['index']}" in text)
     edited = tmp_path / "edited_blender.py"
-    edited.write_text(text.replace(f"{op['op']}(points, {op['index']}, (", f"{op['op']}(points, {op['index']}, (0.25 + "),
-                      encoding="utf-8")
-    assert "FAIL" in names(exporter.validate(edited, result)).values()
+    call = f"{op['op']}(points, {op['index']}, ("
+    edited.write_text(text.replace(call, call + "0.25 + "), encoding="utf-8")
+    got = statuses(exporter.validate(edited, result))
+    assert got["poles"] == "FAIL" and got["history polygons"] == "FAIL"  # judged, not a crashed script

@@ -11,6 +11,7 @@ import re
 
 import numpy as np
 import pytest
+from conftest import statuses
 
 from gsr_cad.cli import formats
 from gsr_cad.errors import ExportError
@@ -31,7 +32,8 @@ def prism() -> PolyMesh:
     a = 2 * np.pi * np.arange(5) / 5
     v = np.concatenate([np.column_stack([np.cos(a), np.sin(a), np.zeros(5)]),
                         np.column_stack([np.cos(a), np.sin(a), np.full(5, 1.3)])]) * 40 + [5, -3, 2]
-    faces = [tuple(range(4, -1, -1)), tuple(range(5, 10))] + [(i, (i + 1) % 5, 5 + (i + 1) % 5, 5 + i) for i in range(5)]
+    faces = [tuple(range(4, -1, -1)), tuple(range(5, 10))]
+    faces += [(i, (i + 1) % 5, 5 + (i + 1) % 5, 5 + i) for i in range(5)]
     return PolyMesh.from_faces(v, faces)
 
 
@@ -40,10 +42,6 @@ def open_grid() -> PolyMesh:
     v = np.column_stack([xy, 0.4 * np.sin(xy.sum(1))])
     faces = [(j * 4 + i, j * 4 + i + 1, (j + 1) * 4 + i + 1, (j + 1) * 4 + i) for j in range(2) for i in range(3)]
     return PolyMesh.from_faces(v, faces)
-
-
-def statuses(checks) -> dict[str, str]:
-    return {c.check: c.status for c in checks}
 
 
 def limit_volume(mesh: PolyMesh, boundary: str = "all") -> float:
@@ -128,3 +126,8 @@ def test_cadquery_script_rebuilds_the_solid(tmp_path):
     first = re.search(r"\(\[\[\(([-0-9.e]+),", text)  # the first pole of the first patch
     script.write_text(text[:first.start(1)] + repr(float(first.group(1)) + 0.5) + text[first.end(1):])
     assert any(c.status == "FAIL" for c in CadqueryExporter().validate(script, result))
+    # An inner pole (row 1, column 1 of the first patch) keeps the solid valid: the measured deviation catches it.
+    inner = re.search(r"\(\[\[[^\]]*\], \[\([^)]*\), \(([-0-9.e]+),", text)
+    script.write_text(text[:inner.start(1)] + repr(float(inner.group(1)) + 0.5) + text[inner.end(1):])
+    got = statuses(CadqueryExporter().validate(script, result))
+    assert got["one closed solid"] == "pass" and got["deviation from the limit surface"] == "FAIL"

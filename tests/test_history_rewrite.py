@@ -8,10 +8,12 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gsr_cad.errors import OpError
+from gsr_cad.genome import replay
 from gsr_cad.geometry.isomorphism import connectivity_hash, isomorphisms
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.ops.mesh import EdgeLoop, Extrude, TranslateVertex, moves_to, random_op
-from gsr_cad.ops.rewrite import genome_mesh, simplify_history, skeletons
+from gsr_cad.ops.rewrite import simplify_history, skeletons
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
 
 
@@ -31,14 +33,16 @@ def renumbered(mesh: PolyMesh, rng: np.random.Generator) -> tuple[PolyMesh, np.n
 def random_mesh(seed: int, n_ops: int) -> PolyMesh:
     rng = np.random.default_rng(seed)
     mesh = unit_cube()
+    applied = 0
     for _ in range(20 * n_ops):
-        if n_ops == 0:
+        if applied == n_ops:
             break
         try:
             mesh = random_op(rng, mesh, mesh.diagonal, "ELBI").apply(mesh)
-            n_ops -= 1
-        except Exception:
+            applied += 1
+        except OpError:
             continue
+    assert applied == n_ops, f"applied {applied} of {n_ops} ops (seed {seed})"
     return mesh
 
 
@@ -81,8 +85,8 @@ def _loops_and_moves(goal: PolyMesh, template: PolyMesh) -> tuple:
     for e1 in range(12):
         for e2 in range(20):
             try:
-                mesh = genome_mesh(template, (EdgeLoop(e1), EdgeLoop(e2)))
-            except Exception:
+                mesh = replay(template, (EdgeLoop(e1), EdgeLoop(e2)))
+            except OpError:
                 continue
             phi = next(isomorphisms(mesh, goal), None)
             if phi is None:
@@ -100,7 +104,7 @@ def test_two_loops_and_moves_become_inset_then_extrude():
     assert "".join(op.letter for op in searched).startswith("LLV")
     rewritten = simplify_history(cube, searched)
     assert rewritten == sample.truth_genome  # the parameters come out exact: inset 0.2, extrude 0.5
-    built = genome_mesh(cube, rewritten)
+    built = replay(cube, rewritten)
     phi = next(isomorphisms(built, goal))
     np.testing.assert_allclose(built.vertices, goal.vertices[phi], atol=1e-12)
 
@@ -113,7 +117,7 @@ def test_on_a_stretched_template_the_corners_move_first():
     searched = _loops_and_moves(goal, template)
     rewritten = simplify_history(template, searched)
     assert "".join(op.letter for op in rewritten) == "V" * 8 + "IE"
-    built = genome_mesh(template, rewritten)
+    built = replay(template, rewritten)
     assert any(np.abs(built.vertices - goal.vertices[phi]).max() <= 1e-12 for phi in isomorphisms(built, goal))
 
 
@@ -127,7 +131,7 @@ def test_tolerance_lets_a_nearly_exact_mesh_take_the_short_history():
     assert sum(op.letter == "V" for op in exact) >= 8  # exactly: the noise needs its moves
     loose = simplify_history(cube, searched, tolerance=1e-6)
     assert [op.letter for op in loose] == ["I", "E"]
-    built = genome_mesh(cube, loose)
+    built = replay(cube, loose)
     gap = min(np.abs(built.vertices - goal.vertices[phi]).max() for phi in isomorphisms(built, goal))
     assert gap <= 1e-6 * goal.diagonal
 
@@ -156,12 +160,12 @@ def test_a_rewrite_is_never_longer_and_builds_the_same_mesh(seed):
         op = random_op(rng, mesh, mesh.diagonal, "VEILF")
         try:
             mesh = op.apply(mesh)
-        except Exception:
+        except OpError:
             continue
         genome.append(op)
     out = simplify_history(cube, genome, budget=3000)
     assert len(out) <= len(genome)
-    built = genome_mesh(cube, out)
+    built = replay(cube, out)
     gap = min(np.abs(built.vertices - mesh.vertices[phi]).max() for phi in isomorphisms(built, mesh))
     assert gap <= 1e-12 * mesh.diagonal
 

@@ -324,9 +324,17 @@ def test_ops_reject_malformed_parameters():
                 lambda: EdgeLoop("3")):
         with pytest.raises(InputError):
             bad()
+    with pytest.raises(InputError, match="bevel offset must be a finite positive number"):
+        Bevel(0, 0.0)
+    with pytest.raises(InputError, match="translate_vertex delta must be three numbers"):
+        TranslateVertex(0, (0, 0))
     with pytest.raises(InputError):
         op_from_json({"op": "bevel", "edge": 1})
-    assert op_from_json({"op": "extrude", "face": 2.0, "distance": 1}) == Extrude(2, 1.0)
+    op = op_from_json({"op": "extrude", "face": 2.0, "distance": 1})
+    assert op == Extrude(2, 1.0) and type(op.face) is int and type(op.distance) is float
+    v = TranslateVertex(np.int64(3), np.array([1, 2, -0.0]))
+    assert v.vertex == 3 and type(v.vertex) is int and v.delta == (1.0, 2.0, 0.0)
+    assert all(type(x) is float for x in v.delta) and math.copysign(1.0, v.delta[2]) == 1.0
 
 
 # --- random_op and perturb_op ---------------------------------------------------------------------------

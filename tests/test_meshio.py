@@ -10,20 +10,12 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from conftest import pentaprism
 from hypothesis.extra import numpy as hnp
 
 from gsr_cad.errors import ExportError, InputError, TopologyError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.reconstruct.meshio import load_mesh, save_mesh, save_obj, triangulate
-
-
-def pentaprism() -> PolyMesh:
-    """Closed, planar faces: two pentagons and five quads."""
-    t = np.linspace(0, 2 * np.pi, 6)[:-1]
-    ring = np.c_[np.cos(t), np.sin(t)]
-    v = np.r_[np.c_[ring, np.zeros(5)], np.c_[ring * 0.6, np.full(5, 1.2)]]
-    faces = [[4, 3, 2, 1, 0], [5, 6, 7, 8, 9]] + [[i, (i + 1) % 5, (i + 1) % 5 + 5, i + 5] for i in range(5)]
-    return PolyMesh.from_faces(v, faces)
 
 
 def strip() -> PolyMesh:

@@ -33,7 +33,8 @@ def ngon_solid() -> PolyMesh:
     a = 2 * np.pi * np.arange(5) / 5
     v = np.concatenate([np.column_stack([np.cos(a), np.sin(a), np.zeros(5)]),
                         np.column_stack([np.cos(a), np.sin(a), np.full(5, 1.3)])])
-    faces = [tuple(range(4, -1, -1)), tuple(range(5, 10))] + [(i, (i + 1) % 5, 5 + (i + 1) % 5, 5 + i) for i in range(5)]
+    faces = [tuple(range(4, -1, -1)), tuple(range(5, 10))]
+    faces += [(i, (i + 1) % 5, 5 + (i + 1) % 5, 5 + i) for i in range(5)]
     return PolyMesh.from_faces(v, faces)
 
 

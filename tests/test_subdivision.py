@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import opensubdiv, pentaprism, torus
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import BSpline
@@ -19,6 +20,7 @@ from gsr_cad.errors import ConfigError, InputError, TopologyError
 from gsr_cad.geometry import subdivision as sd
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import CatmullClark, get_catmull_clark, limit_mesh, refine
+from gsr_cad.geometry.surface_distance import triangulate
 from gsr_cad.geometry.topology import Topology
 from gsr_cad.geometry.validation import validate_mesh
 from gsr_cad.reconstruct.meshio import load_mesh, save_obj
@@ -50,22 +52,6 @@ def _inset_extruded() -> PolyMesh:
     return PolyMesh.from_faces(v, faces)
 
 
-def _pentaprism() -> PolyMesh:
-    t = np.linspace(0, 2 * np.pi, 6)[:-1]
-    ring = np.c_[np.cos(t), np.sin(t)]
-    v = np.r_[np.c_[ring, np.zeros(5)], np.c_[ring * 0.7, np.full(5, 1.3)]]
-    faces = [[4, 3, 2, 1, 0], [5, 6, 7, 8, 9]] + [[i, (i + 1) % 5, (i + 1) % 5 + 5, i + 5] for i in range(5)]
-    return PolyMesh.from_faces(v, faces)
-
-
-def _torus(n: int = 5, m: int = 4) -> PolyMesh:
-    u, w = np.meshgrid(np.linspace(0, 2 * np.pi, n + 1)[:-1], np.linspace(0, 2 * np.pi, m + 1)[:-1], indexing="ij")
-    v = np.stack([(2 + np.cos(w)) * np.cos(u), (2 + np.cos(w)) * np.sin(u), np.sin(w)], axis=-1).reshape(-1, 3)
-    faces = [[i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m]
-             for i in range(n) for j in range(m)]
-    return PolyMesh.from_faces(v, faces)
-
-
 def _grid(nx: int = 4, ny: int = 3) -> PolyMesh:
     v = [[x, y, 0.15 * x * y - 0.1 * x * x] for y in range(ny) for x in range(nx)]
     faces = [[y * nx + x, y * nx + x + 1, (y + 1) * nx + x + 1, (y + 1) * nx + x] for y in range(ny - 1)
@@ -94,11 +80,11 @@ def _mixed_open() -> PolyMesh:
 MESHES: dict[str, PolyMesh] = {
     "cube": unit_cube(),
     "open_cube": PolyMesh.from_faces(unit_cube().vertices, _cube_faces()[:5]),
-    "pentaprism": _pentaprism(),
+    "pentaprism": pentaprism(0.7, 1.3),
     "pyramid": _pyramid(),
     "extruded": _extruded(),
     "inset_extruded": _inset_extruded(),
-    "torus": _torus(),
+    "torus": torus(5, 4),
     "grid": _grid(),
     "fan6": _fan6(),
     "mixed_open": _mixed_open(),
@@ -185,20 +171,6 @@ def match_meshes(ours: PolyMesh, theirs: PolyMesh, scale: float) -> float:
     return float(dist.max() / scale)
 
 
-def osd(mesh: PolyMesh, levels: int, limit: bool, boundary: str) -> PolyMesh:
-    """OpenSubdiv's refined (or limit) mesh, through lagrange."""
-    lagrange = pytest.importorskip("lagrange")
-    from lagrange.subdivision import SchemeType, VertexBoundaryInterpolation, subdivide_mesh
-
-    m = lagrange.SurfaceMesh()
-    m.add_vertices(np.array(mesh.vertices))
-    for f in mesh.faces:
-        m.add_polygon(np.array(f, dtype=np.uint32))
-    out = subdivide_mesh(m, num_levels=levels, scheme=SchemeType.CatmullClark, use_limit_surface=limit,
-                         vertex_boundary_interpolation=getattr(VertexBoundaryInterpolation, OSD_BOUNDARY[boundary]))
-    return PolyMesh.from_faces(np.array(out.vertices), [out.get_facet_vertices(f) for f in range(out.num_facets)])
-
-
 CASES = [(name, boundary) for name in MESHES for boundary in (("all", "corners") if name in OPEN else ("all",))]
 
 
@@ -209,7 +181,8 @@ def test_matches_opensubdiv(name, boundary):
         cc = get_catmull_clark(mesh, levels, boundary)
         for limit in (False, True) if levels else (False,):  # level-0 limit: test_level_zero_limit
             ours = cc.limit(mesh.vertices) if limit else cc.refine(mesh.vertices)
-            err = match_meshes(ours, osd(mesh, levels, limit, boundary), mesh.diagonal)
+            theirs = opensubdiv(mesh, levels, limit=limit, boundary=OSD_BOUNDARY[boundary])
+            err = match_meshes(ours, theirs, mesh.diagonal)
             assert err < 1e-9, (levels, limit, err)
 
 
@@ -219,10 +192,12 @@ def test_level_zero_limit(name, boundary):
     points are those of the level-1 vertex points (the first vertices in both orders), which we return."""
     mesh = MESHES[name]
     ours = limit_mesh(mesh, 0, boundary).vertices
-    np.testing.assert_allclose(ours, osd(mesh, 1, True, boundary).vertices[: mesh.n_vertices], atol=1e-12)
+    level1 = opensubdiv(mesh, 1, limit=True, boundary=OSD_BOUNDARY[boundary]).vertices
+    np.testing.assert_allclose(ours, level1[: mesh.n_vertices], atol=1e-12)
     indptr, faces = mesh.topology.vertex_faces_csr
     all_quads = np.minimum.reduceat(mesh.face_sizes[faces] == 4, indptr[:-1]).astype(bool)
-    np.testing.assert_allclose(ours[all_quads], osd(mesh, 0, True, boundary).vertices[all_quads], atol=1e-12)
+    level0 = opensubdiv(mesh, 0, limit=True, boundary=OSD_BOUNDARY[boundary]).vertices
+    np.testing.assert_allclose(ours[all_quads], level0[all_quads], atol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["pyramid", "fan6"])
@@ -354,6 +329,15 @@ def test_topology_input_and_level_zero():
     np.testing.assert_array_equal(zero.refine(mesh.vertices).vertices, mesh.vertices)
 
 
+def test_triangles_fan_the_refined_faces_once_per_connectivity():
+    for levels in (0, 2):
+        cc = CatmullClark(MESHES["pentaprism"], levels)
+        tris = cc.triangles
+        assert tris is cc.triangles and not tris.flags.writeable
+        np.testing.assert_array_equal(tris, triangulate(cc.corners, cc.offsets))
+        assert len(tris) == int((np.diff(cc.offsets) - 2).sum())
+
+
 def test_unused_vertex_stays_put():
     mesh = PolyMesh.from_faces(np.vstack([MESHES["cube"].vertices, [[5, 5, 5]]]), MESHES["cube"].faces)
     for fn in (refine, limit_mesh):
@@ -393,6 +377,13 @@ def test_cache_evicts_least_recently_used():
     small = sd._Cache(max_bytes=1)
     small.get(meshes[0], 2, "all")
     assert small.info()["entries"] == 0
+    # an entry is accounted at the size it had when stored, though the topology it shares may grow later
+    one = sd._Cache(max_entries=1)
+    cube = unit_cube()
+    one.get(cube, 1, "all")
+    cube.topology.vertex_valence, cube.topology.vertex_is_boundary, cube.topology.vertex_faces_csr
+    torus = one.get(PolyMesh.from_faces(meshes[2].vertices, meshes[2].faces), 1, "all")  # evicts the cube's
+    assert one.info()["bytes"] == torus.nbytes
 
 
 # --- errors -------------------------------------------------------------------------------------------

@@ -135,8 +135,9 @@ def test_ctrl_c_writes_the_best_so_far(tmp_path):
 
 def test_quick_benchmark_writes_its_table(tmp_path):
     table = tmp_path / "surfaces.md"
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "surfaces.py"), "--quick", "--samples", "extended",
-                           "--kinds", "mesh", "cloud", "--out", str(table)], capture_output=True, text=True, timeout=300)
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "surfaces.py"), "--quick", "--samples",
+                           "extended", "--kinds", "mesh", "cloud", "--out", str(table)],
+                          capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     text = table.read_text()
     assert "| extended | mesh |" in text and "| extended | cloud |" in text

@@ -149,7 +149,7 @@ def test_mixed_mean_matches_the_papers_definition(a, t):
         if len(np.unique(s.round(6), axis=0)) < len(s):
             return
     d = np.linalg.norm(a[:, None] - t[None], axis=2)
-    if np.any(np.diff(np.sort(d, axis=1)[:, :2], axis=1) < 1e-9) or np.any(np.diff(np.sort(d.T, axis=1)[:, :2], axis=1) < 1e-9):
+    if any(np.any(np.diff(np.sort(x, axis=1)[:, :2], axis=1) < 1e-9) for x in (d, d.T)):
         return
     diag = 7.0
     assert mixed_mean_distance(a, t, diag) == pytest.approx(paper_mixed_mean(a, t, diag), abs=1e-12)
@@ -200,6 +200,8 @@ def test_point_to_surface_is_zero_for_the_same_surface_whatever_the_sampling():
     small = lim.vertices * 0.9
     back = point_to_surface(small, tris, lim.vertices, target_surface=TriangleSet(lim.vertices, tris))
     assert back.to_surface.min() > 0 and back.symmetric > 0
+    np.testing.assert_allclose(back.to_surface, brute_force(lim.vertices, small, tris), atol=1e-12)
+    np.testing.assert_allclose(back.to_target, brute_force(small, lim.vertices, tris), atol=1e-12)
 
 
 def test_cloud_distance_and_sampling_radius():

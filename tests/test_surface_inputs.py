@@ -155,3 +155,20 @@ def test_target_pickles_without_its_caches():
     copy = pickle.loads(pickle.dumps(target))
     assert "kdtree" not in copy.__dict__ and copy.name == "c"
     np.testing.assert_array_equal(copy.sampling_radius, target.sampling_radius)
+
+
+def test_closest_points_on_a_mesh_and_on_a_cloud():
+    mesh = surface_target(unit_cube(), name="cube")
+    x = np.array([[0.0, 0.0, 1.5], [0.2, -0.1, 0.1], [2.0, 2.0, 2.0]])
+    d, point = mesh.closest(x)
+    np.testing.assert_allclose(point, [[0.0, 0.0, 0.5], [0.5, -0.1, 0.1], [0.5, 0.5, 0.5]], atol=1e-12)
+    np.testing.assert_allclose(d, np.linalg.norm(x - point, axis=1), atol=1e-12)
+    cloud = SurfaceTarget(CLOUD, None, "c")
+    d, point = cloud.closest(CLOUD + 1e-9)  # each sample is within its own sampling radius
+    np.testing.assert_array_equal(point, CLOUD)
+    np.testing.assert_array_equal(d, 0.0)
+    far = CLOUD[0] + [100.0, 0.0, 0.0]
+    d, point = cloud.closest(far[None])
+    nearest = int(np.argmin(np.linalg.norm(CLOUD - far, axis=1)))
+    np.testing.assert_array_equal(point[0], CLOUD[nearest])
+    assert d[0] == pytest.approx(np.linalg.norm(far - CLOUD[nearest]) - cloud.sampling_radius[nearest])

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import opensubdiv
 from trimesh.triangles import closest_point
 from scipy.spatial import cKDTree
 
@@ -22,19 +23,6 @@ REPO = Path(__file__).resolve().parents[1]
 SURFACES = REPO / "samples" / "surfaces"
 NAMES = ("extended", "flattened_extended", "inset_extrude", "random_ops", "unreachable")
 TRUE_OPS = {"extended": "E", "flattened_extended": "FE", "inset_extrude": "IE"}
-
-
-def opensubdiv_limit(mesh, levels: int) -> np.ndarray:
-    lagrange = pytest.importorskip("lagrange")
-    from lagrange.subdivision import SchemeType, VertexBoundaryInterpolation, subdivide_mesh
-
-    m = lagrange.SurfaceMesh()
-    m.add_vertices(np.array(mesh.vertices))
-    for f in mesh.faces:
-        m.add_polygon(np.array(f, dtype=np.uint32))
-    out = subdivide_mesh(m, num_levels=levels, scheme=SchemeType.CatmullClark, use_limit_surface=True,
-                         vertex_boundary_interpolation=VertexBoundaryInterpolation.EdgeOnly)
-    return np.array(out.vertices)
 
 
 def test_registry_holds_every_surface_sample():
@@ -55,7 +43,7 @@ def test_target_is_the_limit_mesh_of_the_true_control_mesh(name):
     report = mesh_report(s.truth_control)
     assert report["valid"] and report["closed"] and report["manifold"]
     # OpenSubdiv (through lagrange) computes the same limit points, in its own order
-    osd = opensubdiv_limit(s.truth_control, LEVELS)
+    osd = opensubdiv(s.truth_control, LEVELS).vertices
     assert osd.shape == s.target.vertices.shape
     dist, match = cKDTree(osd).query(s.target.vertices)
     assert dist.max() < 1e-12 * s.target.diagonal and len(np.unique(match)) == len(osd)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import torus
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,14 +16,6 @@ from gsr_cad.geometry.validation import mesh_report, validate_mesh, vertex_fans
 
 CUBE = unit_cube()
 TRI = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
-
-
-def torus(n: int = 6, m: int = 4) -> PolyMesh:
-    u, w = np.meshgrid(np.linspace(0, 2 * np.pi, n + 1)[:-1], np.linspace(0, 2 * np.pi, m + 1)[:-1], indexing="ij")
-    v = np.stack([(2 + np.cos(w)) * np.cos(u), (2 + np.cos(w)) * np.sin(u), np.sin(w)], axis=-1).reshape(-1, 3)
-    faces = [[i * m + j, ((i + 1) % n) * m + j, ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m]
-             for i in range(n) for j in range(m)]
-    return PolyMesh.from_faces(v, faces)
 
 
 def grid(nx: int, ny: int) -> PolyMesh:
@@ -92,6 +85,18 @@ def test_requirements():
     validate_mesh(torus(), require_closed=True, require_quads=True)
 
 
+def test_with_vertices_shares_the_connectivity_and_checks_the_count():
+    mesh = torus()
+    topo, key = mesh.topology, mesh.topology_key
+    moved = mesh.with_vertices((2 * mesh.vertices).tolist())
+    assert moved.topology is topo and moved.topology_key is key
+    assert moved.corners is mesh.corners and moved.offsets is mesh.offsets
+    np.testing.assert_array_equal(moved.vertices, 2 * mesh.vertices)
+    assert moved.vertices.dtype == np.float64 and not moved.vertices.flags.writeable
+    with pytest.raises(TopologyError, match="as many vertices"):
+        mesh.with_vertices(mesh.vertices[:-1])
+
+
 def test_tiny_but_proper_faces_pass():
     small = CUBE.with_vertices(CUBE.vertices * 1e-9)
     validate_mesh(small)
@@ -136,10 +141,26 @@ def test_mesh_report_flags():
     assert (empty["vertices"], empty["edges"], empty["components"], empty["valid"]) == (0, 0, 0, False)
 
 
+def walked_fans(topo: Topology) -> np.ndarray:
+    """Fans per vertex by walking ``h -> twin(prev(h))`` one half-edge at a time (an independent oracle):
+    open fans from their outgoing boundary half-edge, then the closed ones from any unseen corner."""
+    seen = np.zeros(len(topo.he_origin), dtype=bool)
+    fans = np.zeros(topo.n_vertices, dtype=np.int64)
+    for h in [*np.flatnonzero(topo.he_twin < 0), *range(len(topo.he_origin))]:
+        if seen[h]:
+            continue
+        fans[topo.he_origin[h]] += 1
+        while h >= 0 and not seen[h]:
+            seen[h] = True
+            h = topo.he_twin[topo.he_prev[h]]
+    return fans
+
+
 @settings(max_examples=40, deadline=None)
 @given(keep=st.lists(st.booleans(), min_size=24, max_size=24), seed=st.integers(0, 2**32 - 1))
 def test_vertex_fans_agree_with_topology_walk(keep, seed):
-    """Dropping faces of a torus makes bowtie vertices; vertex_fans must agree with Topology.is_manifold."""
+    """Dropping faces of a torus makes bowtie vertices; vertex_fans must agree with a plain fan walk and with
+    Topology.is_manifold."""
     base = torus()
     faces = [f for f, k in zip(base.faces, keep, strict=True) if k]
     if not faces:
@@ -148,6 +169,7 @@ def test_vertex_fans_agree_with_topology_walk(keep, seed):
     mesh = PolyMesh.from_faces(base.vertices, [faces[i] for i in perm])
     topo = Topology(mesh.corners, mesh.offsets, mesh.n_vertices)
     fans = vertex_fans(topo)
+    assert np.array_equal(fans, walked_fans(topo))
     assert np.array_equal(fans > 0, np.bincount(mesh.corners, minlength=mesh.n_vertices) > 0)
     assert bool(np.all(fans <= 1)) == topo.is_manifold
     report = mesh_report(mesh)

@@ -1,4 +1,4 @@
-"""Helpers shared by the reconstructing subcommands: config flags, output directory, exports."""
+"""Helpers shared by the subcommands: config flags, output directory, control-point CSV, report plots, exports."""
 
 from __future__ import annotations
 
@@ -11,6 +11,9 @@ import typing
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
+from ..atomic import write_text
 from ..errors import ExportError, InputError
 
 
@@ -52,6 +55,12 @@ def config_overrides(args: argparse.Namespace, config_cls: type) -> dict[str, An
     return out
 
 
+def write_control_points(path: Path, points: np.ndarray) -> Path:
+    """``x,y`` CSV of the control points at full double precision, atomically."""
+    rows = "".join(f"{x:.17g},{y:.17g}\n" for x, y in np.asarray(points, dtype=float))
+    return write_text(path, "x,y\n" + rows)
+
+
 def prepare_out_dir(path: str) -> Path:
     """Create the output directory (before the long run) and prove it is writable."""
     out = Path(path)
@@ -66,6 +75,15 @@ def prepare_out_dir(path: str) -> Path:
     if not os.access(out, os.W_OK):
         raise ExportError(f"cannot write to {out}: permission denied")
     return out
+
+
+def plots_module() -> types.ModuleType:
+    """:mod:`gsr_cad.plots` (imported on demand: it loads matplotlib), or ExportError if that is broken."""
+    try:
+        from .. import plots
+    except ImportError as exc:  # matplotlib is a core dependency; say so if it is broken
+        raise ExportError(f"cannot draw report.png: {exc}") from None
+    return plots
 
 
 def _formats_module():

@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-import numpy as np
-
-from ..atomic import write_text
-from ..errors import ExportError
 from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
-from ._common import add_config_flags, config_overrides, parse_formats, prepare_out_dir, write_exports
+from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
+                      write_control_points, write_exports)
 from .progress import ga_progress
 
 
@@ -31,11 +27,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _write_csv(path: Path, points: np.ndarray) -> None:
-    rows = "\n".join(f"{x:.17g},{y:.17g}" for x, y in points)
-    write_text(path, "x,y\n" + rows + "\n")
-
-
 def run(args: argparse.Namespace) -> int:
     target = curve_target(args.points)
     overrides = config_overrides(args, CurveConfig)
@@ -44,15 +35,11 @@ def run(args: argparse.Namespace) -> int:
     formats = parse_formats(args.formats, "curve")
     out = prepare_out_dir(args.out)
     with ga_progress(f"curve {target.name}", enabled=not args.quiet) as on_generation:
-        result = reconstruct_curve(target.points, seed=args.seed, config=config, preset=args.preset,
+        result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
                                    progress=on_generation)
-    result.config["target"]["name"] = target.name
     result.save(out)
-    _write_csv(out / "control_points.csv", result.control_points)
-    try:
-        from .. import plots
-    except ImportError as exc:  # matplotlib is a core dependency; say so if it is broken
-        raise ExportError(f"cannot draw report.png: {exc}") from None
+    write_control_points(out / "control_points.csv", result.control_points)
+    plots = plots_module()
     plots.curve_report(result, target.points, out / "report.png", truth=truth)
     written = write_exports(result, out, formats)
     m = result.metrics

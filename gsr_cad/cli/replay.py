@@ -5,11 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
-
-from ..atomic import write_bytes, write_text
+from ..atomic import write_bytes
 from ..reconstruct.result import Result
-from ._common import parse_formats, prepare_out_dir, write_exports
+from ._common import parse_formats, prepare_out_dir, write_control_points, write_exports
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -19,12 +17,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", required=True, help="output directory")
     p.add_argument("--formats", help="comma-separated export formats (default: all installed); 'none' for none")
     p.set_defaults(run=run)
-
-
-def write_control_points(path: Path, points: np.ndarray) -> Path:
-    """``x,y`` CSV of the control points at full double precision (as ``gsr curve`` writes it), atomically."""
-    rows = "".join(f"{x:.17g},{y:.17g}\n" for x, y in np.asarray(points, dtype=float))
-    return write_text(path, "x,y\n" + rows)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -10,14 +10,15 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from ..errors import ExportError
+from ..errors import ConfigError
 from ..ga import ProcessPoolEvaluator
 from ..geometry.subdivision import limit_mesh
 from ..reconstruct.config import PRESETS, SurfaceConfig
 from ..reconstruct.inputs import surface_target
 from ..reconstruct.meshio import save_obj
 from ..reconstruct.surface import make_template, reconstruct_surface
-from ._common import add_config_flags, config_overrides, parse_formats, prepare_out_dir, write_exports
+from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
+                      write_exports)
 from .progress import ga_progress
 
 
@@ -41,8 +42,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import ConfigError
-
     target = surface_target(args.target)
     config = SurfaceConfig.preset(args.preset, **config_overrides(args, SurfaceConfig))
     make_template(args.template, target, config)  # a bad template file fails here, before any output
@@ -50,19 +49,14 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"workers must be at least 1, not {args.workers}")
     formats = parse_formats(args.formats, "surface")
     out = prepare_out_dir(args.out)
-    pool = ProcessPoolEvaluator(max_workers=args.workers) if args.workers > 1 else None
     with contextlib.ExitStack() as stack:
-        if pool is not None:
-            stack.enter_context(pool)
+        pool = stack.enter_context(ProcessPoolEvaluator(max_workers=args.workers)) if args.workers > 1 else None
         on_generation = stack.enter_context(ga_progress(f"surface {target.name}", enabled=not args.quiet))
         result = reconstruct_surface(target, template=args.template, seed=args.seed, config=config,
                                      preset=args.preset, progress=on_generation, evaluator=pool)
     written = [result.save(out), save_obj(result.control_mesh, out / "control_mesh.obj"),
                save_obj(limit_mesh(result.control_mesh, config.levels, config.boundary), out / "limit_mesh.obj")]
-    try:
-        from .. import plots
-    except ImportError as exc:  # matplotlib is a core dependency; say so if it is broken
-        raise ExportError(f"cannot draw report.png: {exc}") from None
+    plots = plots_module()
     written.append(plots.surface_report(result, out / "report.png"))
     written += write_exports(result, out, formats)
     m = result.metrics

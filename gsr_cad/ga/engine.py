@@ -272,29 +272,34 @@ class GeneticAlgorithm:
         self._commit(self.generation + 1, genomes, all_costs)
 
     def _commit(self, generation: int, genomes: list[GenomeT], costs: np.ndarray) -> None:
-        """Install the next population (sorted), then the optional memetic polish of its best."""
+        """Install the next population (sorted), after the optional memetic polish of its best."""
         order = np.argsort(costs, kind="stable")
         genomes, costs = [genomes[i] for i in order], np.asarray(costs, dtype=float)[order]
         k = self.config.local_search_every
-        hook = getattr(self.problem, "local_search", None)
-        if k > 0 and callable(hook) and generation % k == 0 and genomes:
-            niche = getattr(self.problem, "niche", None)
-            picked, seen = [], set()
-            for i, g in enumerate(genomes):
-                if not math.isfinite(costs[i]) or len(picked) == self.config.local_search_count:
-                    break
-                key = niche(g) if callable(niche) else g
-                if key not in seen:
-                    seen.add(key)
-                    picked.append(i)
-            for i in picked or [0]:
-                polished = tuple(self.problem.repair(tuple(hook(genomes[i])), self._rng))
-                c = self._evaluate([polished])[0]
-                if c < costs[i]:
-                    genomes[i], costs[i] = polished, c
+        if k > 0 and generation % k == 0 and genomes and self._local_search(genomes, costs):
             order = np.argsort(costs, kind="stable")
             genomes, costs = [genomes[i] for i in order], costs[order]
         self.population, self.costs, self.generation = genomes, costs, generation
+
+    def _local_search(self, genomes: list[GenomeT], costs: np.ndarray) -> bool:
+        """Polish, in place, the first genome of each of the ``local_search_count`` first niches of the sorted
+        ``genomes`` (the first genome if no cost is finite); whether any improved."""
+        hook = getattr(self.problem, "local_search", None)
+        if not callable(hook):
+            return False
+        niche = getattr(self.problem, "niche", None)
+        picked: dict[Any, int] = {}
+        for i, g in enumerate(genomes):
+            if not math.isfinite(costs[i]) or len(picked) == self.config.local_search_count:
+                break
+            picked.setdefault(niche(g) if callable(niche) else g, i)
+        improved = False
+        for i in picked.values() or [0]:
+            polished = tuple(self.problem.repair(tuple(hook(genomes[i])), self._rng))
+            c = self._evaluate([polished])[0]
+            if c < costs[i]:
+                genomes[i], costs[i], improved = polished, c, True
+        return improved
 
     def _limit_duplicates(self, genomes: list[GenomeT], costs: np.ndarray) -> tuple[list[GenomeT], np.ndarray]:
         """The best ``population`` individuals with at most ``max_duplicates`` copies of any genome."""

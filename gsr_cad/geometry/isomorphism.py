@@ -2,9 +2,9 @@
 
 Two modelling histories can build the same control mesh with its vertices and faces numbered
 differently (an inset then an extrude, or two edge loops, on a cube). On a connected oriented manifold
-mesh an orientation-preserving isomorphism is fixed by where it sends one directed edge, so trying every
-directed edge of the other mesh as the image of one fixed edge and walking faces and twins from it finds
-them all in ``O(E^2)``. :func:`connectivity_hash` (Weisfeiler-Lehman refinement of the vertex-face
+mesh an orientation-preserving isomorphism is fixed by where it sends one half-edge, so trying every
+half-edge of the other mesh as the image of one fixed half-edge and following ``next`` and ``twin`` from it
+finds them all in ``O(E^2)``. :func:`connectivity_hash` (Weisfeiler-Lehman refinement of the vertex-face
 incidence) rules most pairs out first.
 """
 
@@ -15,7 +15,12 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from ..errors import TopologyError
 from .polymesh import PolyMesh
+from .topology import Topology
+
+_BLOCK = 256
+"""Candidate images of half-edge 0 followed at once (memory: ``E * _BLOCK`` indices)."""
 
 
 def connectivity_hash(mesh: PolyMesh, rounds: int = 4) -> str:
@@ -36,75 +41,74 @@ def connectivity_hash(mesh: PolyMesh, rounds: int = 4) -> str:
     return hashlib.sha1(",".join(sorted(v_label) + sorted(f_label)).encode()).hexdigest()
 
 
-def _directed_edges(faces: list[tuple[int, ...]]) -> dict[tuple[int, int], tuple[int, int]]:
-    """``(u, v) -> (face, corner of u)`` for every directed edge of every face."""
-    out = {}
-    for fi, f in enumerate(faces):
-        k = len(f)
-        for c in range(k):
-            out[(f[c], f[(c + 1) % k])] = (fi, c)
-    return out
+def _spanning_layers(topo: Topology) -> list[tuple[np.ndarray, ...]] | None:
+    """Breadth-first layers from half-edge 0 along ``next`` and ``twin``: per layer, the half-edges first
+    reached through ``next`` and their predecessors, then those first reached through ``twin`` and theirs
+    (on a closed mesh both are permutations, so no half-edge is reached twice in one step). None when some
+    half-edge is never reached (a mesh in several pieces)."""
+    seen = np.zeros(len(topo.he_origin), dtype=bool)
+    seen[0] = True
+    frontier, layers = np.zeros(1, dtype=np.int64), []
+    while frontier.size:
+        layer = []
+        for step in (topo.he_next, topo.he_twin):
+            child = step[frontier]
+            new = ~seen[child]
+            seen[child[new]] = True
+            layer += [child[new], frontier[new]]
+        layers.append(tuple(layer))
+        frontier = np.concatenate(layer[0::2])
+    return layers if seen.all() else None
 
 
 def isomorphisms(a: PolyMesh, b: PolyMesh, limit: int = 64) -> Iterator[np.ndarray]:
     """Orientation-preserving isomorphisms from ``a``'s connectivity to ``b``'s, as arrays ``phi`` with
     ``phi[vertex of a] = vertex of b`` (at most ``limit``; none unless both are connected closed
-    manifolds with equal counts)."""
-    if (a.n_vertices, a.n_faces) != (b.n_vertices, b.n_faces) or a.n_faces == 0:
+    manifolds with equal counts).
+
+    Such a map is a bijection of half-edges commuting with ``next`` and ``twin``, fixed by the image of
+    half-edge 0: every half-edge of ``b`` is tried as that image in turn.
+    """
+    if ((a.n_vertices, a.n_faces) != (b.n_vertices, b.n_faces) or a.n_faces == 0
+            or not np.array_equal(np.sort(a.face_sizes), np.sort(b.face_sizes))):
         return
-    fa, fb = a.faces, b.faces
-    ea, eb = _directed_edges(fa), _directed_edges(fb)
-    if len(ea) != len(eb) or sorted(map(len, fa)) != sorted(map(len, fb)):
+    try:
+        ta, tb = a.topology, b.topology
+    except TopologyError:
         return
-    start = next(iter(ea))
-    found = 0
-    for image in eb:
-        phi = _extend(start, image, fa, fb, ea, eb, a.n_vertices)
-        if phi is not None:
-            yield phi
-            found += 1
-            if found >= limit:
-                return
+    if not (ta.is_closed and tb.is_closed):
+        return
+    layers = _spanning_layers(ta)
+    if layers is None:
+        return
+    n_he, found = len(ta.he_origin), 0
+    for lo in range(0, n_he, _BLOCK):
+        h = np.empty((n_he, min(n_he - lo, _BLOCK)), dtype=np.int64)  # column j: the images if 0 -> lo + j
+        h[0] = np.arange(lo, lo + h.shape[1])
+        for next_child, next_parent, twin_child, twin_parent in layers:
+            h[next_child] = tb.he_next[h[next_parent]]
+            h[twin_child] = tb.he_twin[h[twin_parent]]
+        commutes = np.all(h[ta.he_next] == tb.he_next[h], axis=0) & np.all(h[ta.he_twin] == tb.he_twin[h], axis=0)
+        for j in np.flatnonzero(commutes):
+            phi = _vertex_map(ta, tb, h[:, j])
+            if phi is not None:
+                yield phi
+                found += 1
+                if found >= limit:
+                    return
 
 
-def _extend(start: tuple[int, int], image: tuple[int, int], fa, fb, ea, eb, n: int) -> np.ndarray | None:
-    """The isomorphism sending directed edge ``start`` of ``a`` to ``image`` of ``b``, or None."""
-    vmap = np.full(n, -1, dtype=np.int64)
-    used = np.zeros(n, dtype=bool)
-    fmap: dict[int, int] = {}
-    taken: set[int] = set()
-    stack = [(start, image)]
-    while stack:
-        (u, v), (x, y) = stack.pop()
-        f, c = ea[(u, v)]
-        if f in fmap:
-            continue
-        g_c = eb.get((x, y))
-        if g_c is None:
-            return None
-        g, d = g_c
-        if len(fa[f]) != len(fb[g]) or g in taken:
-            return None
-        fmap[f] = g
-        taken.add(g)
-        k = len(fa[f])
-        for i in range(k):
-            p, q = fa[f][(c + i) % k], fb[g][(d + i) % k]
-            if vmap[p] == -1:
-                if used[q]:
-                    return None
-                vmap[p], used[q] = q, True
-            elif vmap[p] != q:
-                return None
-        for i in range(k):
-            p0, p1 = fa[f][(c + i) % k], fa[f][(c + i + 1) % k]
-            q0, q1 = fb[g][(d + i) % k], fb[g][(d + i + 1) % k]
-            if (p1, p0) not in ea:
-                return None  # an open edge: not a closed mesh
-            stack.append(((p1, p0), (q1, q0)))
-    if len(fmap) != len(fa) or np.any(vmap < 0):
+def _vertex_map(ta: Topology, tb: Topology, hmap: np.ndarray) -> np.ndarray | None:
+    """The vertex map of a half-edge map commuting with ``next`` and ``twin`` when the map is a bijection that
+    sends each vertex's corners to one vertex and no two vertices to one, else None."""
+    if np.bincount(hmap, minlength=len(hmap)).max() > 1:
         return None
-    return vmap
+    phi = np.full(ta.n_vertices, -1, dtype=np.int64)
+    phi[ta.he_origin] = tb.he_origin[hmap]
+    if (not np.array_equal(phi[ta.he_origin], tb.he_origin[hmap]) or np.any(phi < 0)
+            or np.bincount(phi, minlength=len(phi)).max() > 1):
+        return None
+    return phi
 
 
 __all__ = ["connectivity_hash", "isomorphisms"]

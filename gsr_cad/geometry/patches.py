@@ -177,8 +177,7 @@ def limit_grids(mesh: PolyMesh, level: int, boundary: Boundary = "all") -> np.nd
         raise ConfigError(f"the sampling level must be a whole number >= 1, got {level!r}")
     cc = get_catmull_clark(mesh, int(level), boundary)
     n_quads = len(mesh.corners)
-    grid = _GRIDS.get((mesh.topology_key, int(level), boundary),
-                      lambda: _grid_indices(cc.corners, n_quads, int(level)))
+    grid = _GRIDS.get((mesh.topology_key, int(level)), lambda: _grid_indices(cc.corners, n_quads, int(level)))
     return (cc.limit_matrix @ mesh.vertices)[grid]
 
 

@@ -56,12 +56,12 @@ class PolyMesh:
         return mesh
 
     def with_vertices(self, vertices: np.ndarray) -> PolyMesh:
-        """Same faces, new positions; shares the topology (and its caches) if it was built."""
-        mesh = PolyMesh(vertices, self.corners, self.offsets, _topology=self._topology)
-        if mesh.vertices.shape != self.vertices.shape:
+        """Same faces (valid already: not checked again), new positions; shares the topology (and its caches) if
+        it was built."""
+        v = _frozen(vertices, np.float64).reshape(-1, 3)
+        if v.shape != self.vertices.shape:
             raise TopologyError("with_vertices needs as many vertices as the mesh has")
-        mesh._key = self._key
-        return mesh
+        return PolyMesh._trusted(v, self.corners, self.offsets, self._topology, self._key)
 
     # --- sizes and faces -------------------------------------------------------------------------
     @property

@@ -55,6 +55,7 @@ import scipy.sparse as sp
 
 from ..errors import ConfigError, InputError, TopologyError
 from .polymesh import PolyMesh
+from .surface_distance import triangulate
 from .topology import Topology
 
 Boundary = Literal["all", "corners"]
@@ -151,24 +152,10 @@ def _refined_level(level: _Level) -> _Level:
     return _Level(topo, offsets, _indptr(counts), vcorners, True)
 
 
-def _check_manifold(level: _Level) -> None:
-    """Refuse a vertex whose corners form more than one fan (corners ``h`` and ``twin(prev(h))`` touch), and
-    a face on both sides of an edge (refinements of any other manifold mesh stay manifold).
-
-    Pointer jumping along ``h -> twin(prev(h))``: once ``2**rounds`` exceeds every vertex's corner count,
-    each open fan is represented by its last corner and each closed one by its lowest.
-    """
-    topo = level.topo
-    rot = topo.he_twin[topo.he_prev]
-    h = np.arange(len(rot))
-    last = rot < 0
-    jump = np.where(last, h, rot)
-    low = h
-    for _ in range(int(np.diff(level.vptr).max()).bit_length()):
-        low = np.minimum(low, low[jump])
-        jump = jump[jump]
-    fan = np.where(last[jump], jump, low) == h
-    if np.any(np.bincount(topo.he_origin[fan], minlength=topo.n_vertices) > 1):
+def _check_manifold(topo: Topology) -> None:
+    """Refuse a vertex whose corners form more than one fan (:attr:`Topology.vertex_fans`), and a face on both
+    sides of an edge (refinements of any other manifold mesh stay manifold)."""
+    if not topo.is_manifold:
         raise TopologyError("Catmull-Clark needs a manifold mesh: a vertex joins separate fans of faces")
     if np.any(topo.edge_faces[:, 0] == topo.edge_faces[:, 1]):  # its refinement would repeat an edge
         raise TopologyError("Catmull-Clark needs faces that do not border themselves: a face is on both sides "
@@ -433,7 +420,7 @@ class CatmullClark:
             raise ConfigError(
                 f"{levels} levels on {topo.n_faces} faces would make {n_out} faces (limit {MAX_REFINED_FACES})")
         base = _base_level(topo, offsets)
-        _check_manifold(base)
+        _check_manifold(topo)
         self.levels = levels
         self.boundary = boundary
         self.n_control = topo.n_vertices
@@ -468,6 +455,14 @@ class CatmullClark:
     def topology(self) -> Topology:
         """Topology of the refined faces, derived in closed form on first use (the matrices never need it)."""
         return _refined_topology(self._coarse)
+
+    @functools.cached_property
+    def triangles(self) -> np.ndarray:
+        """Fan triangles of the refined faces (:func:`~gsr_cad.geometry.surface_distance.triangulate`), read-only,
+        built once per connectivity (the distances of every evaluation use them)."""
+        tris = triangulate(self.corners, self.offsets)
+        tris.setflags(write=False)
+        return tris
 
     @functools.cached_property
     def _template(self) -> PolyMesh:
@@ -505,10 +500,12 @@ class CatmullClark:
         v = np.asarray(vertices, dtype=np.float64)
         if v.shape != (self.n_control, 3):
             raise InputError(f"expected ({self.n_control}, 3) control vertices, got shape {v.shape}")
-        # the refined topology and key are shared once derived; before that an output derives its own on demand
-        mesh = PolyMesh(matrix @ v, self.corners, self.offsets, _topology=self.__dict__.get("topology"))
-        mesh._key = self.__dict__.get("topology_key")
-        return mesh
+        out = matrix @ v
+        out.setflags(write=False)
+        # valid faces by construction; the refined topology and key are shared once derived, before that an
+        # output derives its own on demand
+        return PolyMesh._trusted(out, self.corners, self.offsets, self.__dict__.get("topology"),
+                                 self.__dict__.get("topology_key"))
 
     def refine(self, vertices: np.ndarray) -> PolyMesh:
         """The mesh after ``levels`` refinement steps of control vertices ``vertices``."""
@@ -524,11 +521,12 @@ class CatmullClark:
 
 
 class _Cache:
-    """Thread-safe LRU of CatmullClark objects, bounded by entry count and by bytes."""
+    """Thread-safe LRU of CatmullClark objects, bounded by entry count and by bytes (each entry's size as
+    measured when it was stored: the topology it holds may gain cached arrays later)."""
 
     def __init__(self, max_entries: int = 256, max_bytes: int = 512 * 2**20):
         self.max_entries, self.max_bytes = max_entries, max_bytes
-        self._items: OrderedDict[tuple, CatmullClark] = OrderedDict()
+        self._items: OrderedDict[tuple, tuple[CatmullClark, int]] = OrderedDict()
         self._bytes = 0
         self._lock = threading.Lock()
         self.hits = self.misses = 0
@@ -537,20 +535,21 @@ class _Cache:
         levels = _check_options(levels, boundary)
         key = (mesh.topology_key, levels, boundary)
         with self._lock:
-            cc = self._items.get(key)
-            if cc is not None:
+            item = self._items.get(key)
+            if item is not None:
                 self._items.move_to_end(key)
                 self.hits += 1
-                return cc
+                return item[0]
             self.misses += 1
         cc = CatmullClark(mesh, levels, boundary)
         with self._lock:
             if key not in self._items:
-                self._items[key] = cc
-                self._bytes += cc.nbytes
+                size = cc.nbytes
+                self._items[key] = (cc, size)
+                self._bytes += size
             while self._items and (len(self._items) > self.max_entries or self._bytes > self.max_bytes):
-                _, old = self._items.popitem(last=False)
-                self._bytes -= old.nbytes
+                _, (_, size) = self._items.popitem(last=False)
+                self._bytes -= size
         return cc
 
     def clear(self) -> None:

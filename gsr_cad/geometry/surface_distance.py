@@ -161,7 +161,8 @@ class TriangleSet:
         edges = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
                           np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
         size = float(np.median(edges)) / _SPLIT
-        k = np.ones(len(t), dtype=np.int64) if size <= 0 else np.clip(np.ceil(edges / size), 1, _MAX_SPLIT).astype(np.int64)
+        k = (np.ones(len(t), dtype=np.int64) if size <= 0
+             else np.clip(np.ceil(edges / size), 1, _MAX_SPLIT).astype(np.int64))
         centroid = (a + b + c) / 3.0
         own_radius = np.stack([np.linalg.norm(a - centroid, axis=1), np.linalg.norm(b - centroid, axis=1),
                                np.linalg.norm(c - centroid, axis=1)], axis=1).max(axis=1)
@@ -181,9 +182,6 @@ class TriangleSet:
     def __len__(self) -> int:
         return len(self.triangles)
 
-    def _exact(self, p: np.ndarray, tri: np.ndarray):
-        return self._data.closest(p, tri)
-
     def closest(self, points: np.ndarray) -> Closest:
         """The exact closest point on the set for every row of ``points`` ``(q, 3)``."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -192,7 +190,7 @@ class TriangleSet:
         dk, ik = self._tree.query(p, k=k)
         dk, ik = dk.reshape(n_p, k), ik.reshape(n_p, k)
         tri = self._owner[ik[:, 0]]
-        dist, point, bary = self._exact(p, tri)
+        dist, point, bary = self._data.closest(p, tri)
         rows = np.arange(n_p)
         done = 1  # columns already evaluated
         while True:
@@ -204,7 +202,7 @@ class TriangleSet:
             r, c = np.nonzero(cand >= 0)
             if r.size:
                 q, t = rows[r], cand[r, c]
-                d, pt, bc = self._exact(p[q], t)
+                d, pt, bc = self._data.closest(p[q], t)
                 table = np.full(cand.shape, np.inf)
                 table[r, c] = d
                 pick = np.argmin(table, axis=1)

@@ -123,21 +123,27 @@ class Topology:
         return used - self.n_edges + self.n_faces
 
     @functools.cached_property
+    def vertex_fans(self) -> np.ndarray:
+        """Number of separate fans of faces around each vertex (1 for a manifold vertex, 0 if unused), read-only.
+
+        Corners ``h`` and ``twin(prev(h))`` at the same vertex touch. Pointer jumping along that map: once
+        ``2**rounds`` exceeds every vertex's corner count, an open fan is represented by its last corner and
+        a closed one by its lowest.
+        """
+        rot = self.he_twin[self.he_prev]
+        h = np.arange(len(rot))
+        last = rot < 0
+        jump = np.where(last, h, rot)
+        low = h
+        for _ in range(int(np.bincount(self.he_origin).max(initial=0)).bit_length()):
+            low = np.minimum(low, low[jump])
+            jump = jump[jump]
+        fan = np.where(last[jump], jump, low) == h
+        fans = np.bincount(self.he_origin[fan], minlength=self.n_vertices)
+        fans.setflags(write=False)
+        return fans
+
+    @functools.cached_property
     def is_manifold(self) -> bool:
         """Edge-manifold is guaranteed by construction; also require manifold vertices (one fan each)."""
-        # Walk the fan of outgoing half-edges around every vertex: h -> twin(prev(h)).
-        n_he = len(self.he_origin)
-        seen = np.zeros(n_he, dtype=bool)
-        fans = np.zeros(self.n_vertices, dtype=np.int64)
-        start_candidates = np.where(self.he_twin < 0)[0]  # boundary fans start at a boundary half-edge
-        for starts in (start_candidates, np.arange(n_he)):
-            for h in starts:
-                if seen[h]:
-                    continue
-                fans[self.he_origin[h]] += 1
-                cur = h
-                while cur >= 0 and not seen[cur]:
-                    seen[cur] = True
-                    t = self.he_twin[self.he_prev[cur]]
-                    cur = t
-        return bool(np.all(fans[self.vertex_valence > 0] <= 1))
+        return not bool(np.any(self.vertex_fans > 1))

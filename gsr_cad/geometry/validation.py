@@ -22,20 +22,9 @@ DEGENERATE_AREA = 1e-12
 
 
 def vertex_fans(topology: Topology) -> np.ndarray:
-    """Number of separate fans of faces around each vertex (1 for a manifold vertex, 0 if unused).
-
-    Corners at the same vertex are joined when they share an edge (``h`` and ``twin(prev(h))``);
-    each connected group of corners is one fan.
-    """
-    n_he = len(topology.he_origin)
-    if n_he == 0:
-        return np.zeros(topology.n_vertices, dtype=np.int64)
-    partner = topology.he_twin[topology.he_prev]
-    has = partner >= 0
-    graph = sp.coo_matrix((np.ones(int(has.sum())), (np.flatnonzero(has), partner[has])), shape=(n_he, n_he))
-    _, labels = connected_components(graph, directed=False)
-    _, first = np.unique(labels, return_index=True)
-    return np.bincount(topology.he_origin[first], minlength=topology.n_vertices)
+    """Number of separate fans of faces around each vertex (1 for a manifold vertex, 0 if unused):
+    :attr:`Topology.vertex_fans`."""
+    return topology.vertex_fans
 
 
 def _edge_keys(mesh: PolyMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -81,7 +70,7 @@ def _first_problem(mesh: PolyMesh) -> str | None:
         return (f"faces {face[h[0]]} and {face[h[1]]} run edge ({a[h[0]]}, {b[h[0]]}) the same way "
                 "(inconsistent orientation)")
 
-    fans = vertex_fans(mesh.topology)
+    fans = mesh.topology.vertex_fans
     if np.any(fans > 1):
         v = int(np.flatnonzero(fans > 1)[0])
         return f"vertex {v} is non-manifold ({fans[v]} separate fans of faces meet there)"
@@ -144,7 +133,7 @@ def mesh_report(mesh: PolyMesh) -> dict[str, Any]:
         components = 0
     manifold = edge_manifold
     if oriented and mesh.n_faces and not np.any(a == b):
-        manifold = not np.any(vertex_fans(Topology(mesh.corners, mesh.offsets, mesh.n_vertices)) > 1)
+        manifold = mesh.topology.is_manifold
     chi = int(np.count_nonzero(used)) - n_edges + mesh.n_faces
     closed = bool(n_edges) and not np.any(counts == 1)
     problem = _first_problem(mesh)

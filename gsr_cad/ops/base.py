@@ -9,6 +9,7 @@ genome round-trips through JSON as ``{"op": name, **fields}``.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from typing import Any, ClassVar, TypeVar
 
 from ..errors import InputError
@@ -16,6 +17,7 @@ from ..errors import InputError
 REGISTRY: dict[str, type[Op]] = {}
 
 T = TypeVar("T", bound="type[Op]")
+S = TypeVar("S")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,3 +60,11 @@ def op_from_json(data: dict[str, Any]) -> Op:
         value = data[f.name]
         kwargs[f.name] = tuple(float(v) for v in value) if isinstance(value, list) else value
     return cls(**kwargs)
+
+
+def replay(template: S, genome: Iterable[Op]) -> S:
+    """Apply every op in order; raises OpError at the first op that cannot apply."""
+    state = template
+    for op in genome:
+        state = op.apply(state)
+    return state

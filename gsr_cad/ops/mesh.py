@@ -51,7 +51,7 @@ from ..errors import ConfigError, InputError, OpError
 from ..geometry.polymesh import PolyMesh
 from . import mesh_kernel as K
 from .base import Op, register
-from .mesh_conn import connectivity
+from .mesh_conn import mesh_view
 
 __all__ = [
     "Bevel", "EdgeLoop", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
@@ -97,15 +97,30 @@ def _vector(value, what: str) -> tuple[float, float, float]:
     return (x + 0.0, y + 0.0, z + 0.0)
 
 
+def _positive(value, what: str) -> float:
+    return _number(value, what, positive=True)
+
+
 def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
+_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "delta": _vector, "distance": _number,
+                 "offset": _positive, "thickness": _positive, "factor": _positive}
+"""How :class:`MeshOp` normalises each op field, by field name (InputError on a malformed value)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class MeshOp(Op):
-    """Base of the surface ops: ``letter`` is the paper's one-letter code."""
+    """Base of the surface ops: ``letter`` is the paper's one-letter code. Fields are checked and
+    normalised on construction by name (:data:`_FIELD_CHECKS`): element indices to ``int``, amounts to
+    finite ``float`` (offset, thickness and factor positive), deltas to three-float tuples."""
 
     letter: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for field in self.__match_args__:  # the dataclass fields, in order (cheaper than dataclasses.fields)
+            object.__setattr__(self, field, _FIELD_CHECKS[field](getattr(self, field), f"{self.name} {field}"))
 
     def describe(self) -> str:  # pragma: no cover - every subclass overrides it
         raise NotImplementedError
@@ -120,10 +135,6 @@ class TranslateVertex(MeshOp):
     letter: ClassVar[str] = "V"
     vertex: int
     delta: tuple[float, float, float]
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "vertex", _element(self.vertex, "translate_vertex vertex"))
-        object.__setattr__(self, "delta", _vector(self.delta, "translate_vertex delta"))
 
     def apply(self, state: PolyMesh) -> PolyMesh:
         return translate_vertex(state, self.vertex, self.delta)
@@ -142,10 +153,6 @@ class Extrude(MeshOp):
     face: int
     distance: float
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "face", _element(self.face, "extrude face"))
-        object.__setattr__(self, "distance", _number(self.distance, "extrude distance"))
-
     def apply(self, state: PolyMesh) -> PolyMesh:
         return extrude(state, self.face, self.distance)
 
@@ -161,9 +168,6 @@ class EdgeLoop(MeshOp):
     name: ClassVar[str] = "edge_loop"
     letter: ClassVar[str] = "L"
     edge: int
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "edge", _element(self.edge, "edge_loop edge"))
 
     def apply(self, state: PolyMesh) -> PolyMesh:
         return edge_loop(state, self.edge)
@@ -182,10 +186,6 @@ class Bevel(MeshOp):
     edge: int
     offset: float
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "edge", _element(self.edge, "bevel edge"))
-        object.__setattr__(self, "offset", _number(self.offset, "bevel offset", positive=True))
-
     def apply(self, state: PolyMesh) -> PolyMesh:
         return bevel(state, self.edge, self.offset)
 
@@ -202,10 +202,6 @@ class Inset(MeshOp):
     letter: ClassVar[str] = "I"
     face: int
     thickness: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "face", _element(self.face, "inset face"))
-        object.__setattr__(self, "thickness", _number(self.thickness, "inset thickness", positive=True))
 
     def apply(self, state: PolyMesh) -> PolyMesh:
         return inset(state, self.face, self.thickness)
@@ -224,10 +220,6 @@ class TranslateFace(MeshOp):
     face: int
     distance: float
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "face", _element(self.face, "translate_face face"))
-        object.__setattr__(self, "distance", _number(self.distance, "translate_face distance"))
-
     def apply(self, state: PolyMesh) -> PolyMesh:
         return translate_face(state, self.face, self.distance)
 
@@ -243,9 +235,6 @@ class Scale(MeshOp):
     name: ClassVar[str] = "scale"
     letter: ClassVar[str] = "S"
     factor: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "factor", _number(self.factor, "scale factor", positive=True))
 
     def apply(self, state: PolyMesh) -> PolyMesh:
         return scale(state, self.factor)
@@ -342,7 +331,8 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
     if kind == "V":
         vertex = int(rng.integers(mesh.n_vertices))
         return TranslateVertex(vertex, tuple((rng.uniform(-1.0, 1.0, 3) * ranges.move * scale).tolist()))
-    conn = connectivity(mesh)
+    view = mesh_view(mesh)  # the apply that follows reuses it
+    conn = view.conn
     if kind in "EIF":
         face = int(rng.integers(conn.n_faces))
         if kind == "E":
@@ -350,12 +340,12 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
             return Extrude(face, float(-distance if rng.random() < ranges.inward else distance))
         if kind == "F":
             return TranslateFace(face, float(rng.uniform(-1.0, 1.0) * ranges.face_move * scale))
-        size = _face_inradius(mesh.vertices.tolist(), conn.faces[face]) or scale  # a zero-area face: any size
+        size = _face_inradius(view.P, conn.faces[face]) or scale  # a zero-area face: any size
         return Inset(face, float(rng.uniform(*ranges.thickness) * size))
     edge = int(rng.integers(len(conn.edges)))
     if kind == "L":
         return EdgeLoop(edge)
-    size = _local_edge_size(mesh.vertices.tolist(), conn, edge) or scale
+    size = _local_edge_size(view.P, conn, edge) or scale
     return Bevel(edge, float(rng.uniform(*ranges.offset) * size))
 
 

@@ -115,22 +115,19 @@ def _face_newell(view: MeshView, f: int) -> Vec:
     return n
 
 
-def face_normal(P: list[list[float]], cyc: Sequence[int]) -> Vec | None:
-    """Unit Newell normal of a face, or None when its area is zero."""
-    return _unit(_newell(P, cyc))
-
-
 # --- validity ------------------------------------------------------------------------------------------
 
-def _check(what: str, P: list[list[float]], faces: list[tuple[int, ...]], conn: MeshConn,
-           touched: Iterable[int], refs: dict[int, Vec | None], diag: float, newell: list) -> None:
-    """Raise OpError unless every touched face is sound (see the module docstring).
+def _check(what: str, P: list[list[float]], conn: MeshConn, touched: Iterable[int], refs: dict[int, Vec | None],
+           diag: float, newell: list) -> None:
+    """Raise OpError unless every touched face of the new mesh (positions ``P``, connectivity ``conn``) is
+    sound (see the module docstring).
 
     ``refs`` maps a face to the unit normal it must not flip against (the face it came from). ``newell``
     is the new mesh's list of Newell vectors: set entries of untouched faces must be right (their cycle and
-    vertices did not change); the touched faces' entries are computed here, neighbours' filled in when
+    vertices did not change); the touched faces' entries are (re)computed here, neighbours' filled in when
     missing. The arithmetic is written out on floats: this runs once per op in every GA replay.
     """
+    faces = conn.faces
     min_len2 = (MIN_EDGE_REL * diag) ** 2
     min_area2 = 2.0 * MIN_AREA_REL * diag * diag
     min_area4 = min_area2 * min_area2
@@ -221,7 +218,7 @@ def _finish(what: str, view: MeshView, P: list[list[float]], faces: list[tuple[i
     fresh = conn is None
     if fresh:
         conn = MeshConn.updated(view.conn, faces, touched, len(P))
-    _check(what, P, faces, conn, touched, refs, diag, newell)
+    _check(what, P, conn, touched, refs, diag, newell)
     if fresh:
         cache_connectivity(key, conn)
     old = view.mesh.vertices
@@ -255,22 +252,26 @@ def translate_vertex(mesh: PolyMesh, vertex: int, delta: Sequence[float]) -> Pol
     p = P[vertex]
     P[vertex] = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]]
     newell = list(view.newell)
-    for f in around:
-        newell[f] = None
-    _check(what, P, conn.faces, conn, around, refs, diag, newell)
+    _check(what, P, conn, around, refs, diag, newell)
     return _moved(view, P, (vertex,), newell)
 
 
-def translate_face(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
-    """F: move a face's vertices by ``distance`` along its unit Newell normal."""
-    what = f"translate_face {face}"
+def _face_op(mesh: PolyMesh, face: int, what: str) -> tuple[MeshView, tuple[int, ...], Vec]:
+    """The view of ``mesh``, the cycle of ``face`` and its unit normal, for the ops on one face (F, E, I)."""
     view = mesh_view(mesh)
     conn = view.conn
     cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
     n = _unit(_face_newell(view, face))
     if n is None:
         raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(view)
+    return view, cyc, n
+
+
+def translate_face(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
+    """F: move a face's vertices by ``distance`` along its unit Newell normal."""
+    what = f"translate_face {face}"
+    view, cyc, n = _face_op(mesh, face, what)
+    conn = view.conn
     around = sorted({g for c in cyc for g in conn.vertex_faces(c)})
     refs = {g: _unit(_face_newell(view, g)) for g in around}
     P = list(view.P)
@@ -279,9 +280,7 @@ def translate_face(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
         p = P[c]
         P[c] = [p[0] + dx, p[1] + dy, p[2] + dz]
     newell = list(view.newell)
-    for g in around:
-        newell[g] = None
-    _check(what, P, conn.faces, conn, around, refs, diag, newell)
+    _check(what, P, conn, around, refs, _diagonal(view), newell)
     return _moved(view, P, cyc, newell)
 
 
@@ -310,38 +309,31 @@ def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
 
 # --- E, I: a face on new vertices plus a ring of quads -----------------------------------------------------
 
-def _cap_and_ring(P: list[list[float]], faces: list[tuple[int, ...]], face: int,
-                  new_points: list[list[float]]) -> tuple[list[tuple[int, ...]], list[int]]:
-    """Replace ``face`` by a copy on new vertices and add one quad per edge; returns (faces, new face ids)."""
-    cyc = faces[face]
+def _cap_and_ring(what: str, view: MeshView, face: int, new_points: list[list[float]], ref: Vec | None) -> PolyMesh:
+    """E and I: ``face`` moved onto the appended ``new_points``, joined to its old rim by one quad per edge
+    (checked; ``ref``, when given, is the normal the new faces must not flip against)."""
+    cyc = view.conn.faces[face]
     k = len(cyc)
-    base = len(P)
-    P.extend(new_points)
+    base = len(view.P)
+    diag = _diagonal(view)
     new = tuple(range(base, base + k))
-    out = list(faces)
-    out[face] = new
-    first = len(out)
-    out.extend((cyc[i], cyc[(i + 1) % k], new[(i + 1) % k], new[i]) for i in range(k))
-    return out, [face, *range(first, first + k)]
+    faces = list(view.conn.faces)
+    faces[face] = new
+    first = len(faces)
+    faces.extend((cyc[i], cyc[(i + 1) % k], new[(i + 1) % k], new[i]) for i in range(k))
+    touched = [face, *range(first, first + k)]
+    refs = {} if ref is None else dict.fromkeys(touched, ref)
+    return _finish(what, view, view.P + new_points, faces, touched, refs, diag, view.newell + [None] * k, (),
+                   _extended(view.bounds, new_points))
 
 
 def extrude(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
     """E: move ``face`` to new vertices ``distance`` along its normal, joined to the old rim by quads."""
     what = f"extrude {face}"
-    view = mesh_view(mesh)
-    conn = view.conn
-    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
-    n = _unit(_face_newell(view, face))
-    if n is None:
-        raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(view)
-    P = list(view.P)
+    view, cyc, n = _face_op(mesh, face, what)
+    P = view.P
     dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
-    pts = [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc]
-    faces, touched = _cap_and_ring(P, conn.faces, face, pts)
-    newell = view.newell + [None] * len(cyc)
-    newell[face] = None
-    return _finish(what, view, P, faces, touched, {}, diag, newell, (), _extended(view.bounds, pts))
+    return _cap_and_ring(what, view, face, [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc], None)
 
 
 def inset_points(P: list[list[float]], cyc: Sequence[int], thickness: float, n: Vec,
@@ -373,20 +365,8 @@ def inset(mesh: PolyMesh, face: int, thickness: float) -> PolyMesh:
     what = f"inset {face}"
     if not thickness > 0.0:
         raise OpError(f"{what}: the thickness must be positive")
-    view = mesh_view(mesh)
-    conn = view.conn
-    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
-    n = _unit(_face_newell(view, face))
-    if n is None:
-        raise OpError(f"{what}: face {face} has zero area")
-    diag = _diagonal(view)
-    pts = inset_points(view.P, cyc, thickness, n, what)
-    P = list(view.P)
-    faces, touched = _cap_and_ring(P, conn.faces, face, pts)
-    newell = view.newell + [None] * len(cyc)
-    newell[face] = None
-    return _finish(what, view, P, faces, touched, dict.fromkeys(touched, n), diag, newell, (),
-                   _extended(view.bounds, pts))
+    view, cyc, n = _face_op(mesh, face, what)
+    return _cap_and_ring(what, view, face, inset_points(view.P, cyc, thickness, n, what), n)
 
 
 # --- L: edge loop ----------------------------------------------------------------------------------------
@@ -404,13 +384,10 @@ def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int
     quads: list[tuple[int, int]] = []
     ends: list[int] = []
     seen: set[int] = set()
-    closed = False
     for side in (0, 1):
         e = edge
         f = conn.edge_faces(edge)[side]
-        while True:
-            if f < 0:
-                break
+        while f >= 0:
             cyc = faces[f]
             if len(cyc) != 4:
                 ends.append(f)
@@ -424,13 +401,10 @@ def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int
             a, b = cyc[(i + 2) % 4], cyc[(i + 3) % 4]
             e = edge_id[(a, b) if a < b else (b, a)]
             if e == edge:
-                closed = True
-                break
+                return ring, quads, ends, True
             ring.append(e)
             f = half.get((b, a), -1)
-        if closed:
-            break
-    return ring, quads, ends, closed
+    return ring, quads, ends, False
 
 
 def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
@@ -479,8 +453,6 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
         touched.append(f)
     touched = list(dict.fromkeys(touched))
     newell = view.newell + [None] * (len(faces) - len(conn.faces))
-    for f in touched:
-        newell[f] = None
     return _finish(what, view, P, faces, touched, refs, diag, newell, (), _extended(view.bounds, P[base:]))
 
 
@@ -617,9 +589,9 @@ def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
             touched.append(len(faces) - 1)
             if vn is not None:
                 refs[len(faces) - 1] = vn
-    # the faces at a or b changed (a face at a or b outside the two fans, only possible at a pinched
-    # vertex, keeps its cycle but not its positions): their Newell vectors are recomputed
+    # _check recomputes the touched faces' Newell vectors; a face at a or b outside the two fans (only
+    # possible at a pinched vertex) keeps its cycle but not its positions: its vector is dropped
     newell = view.newell + [None] * (len(faces) - len(conn.faces))
-    for f in (*touched, *conn.vertex_faces(a), *conn.vertex_faces(b)):
+    for f in (*conn.vertex_faces(a), *conn.vertex_faces(b)):
         newell[f] = None
     return _finish(what, view, P, faces, touched, refs, diag, newell, (a, b))

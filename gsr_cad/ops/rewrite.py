@@ -27,8 +27,9 @@ import scipy.optimize
 from ..errors import OpError
 from ..geometry.isomorphism import connectivity_hash, isomorphisms
 from ..geometry.polymesh import PolyMesh
+from .base import replay
 from .mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, _face_inradius, _local_edge_size, moves_to
-from .mesh_conn import connectivity
+from .mesh_conn import mesh_view
 
 STRUCTURAL = "ELBI"
 """Ops that change the connectivity (the others only move vertices)."""
@@ -39,8 +40,8 @@ _NOMINAL = 0.25  # nominal I thickness / B offset, as a fraction of the room the
 
 def _candidates(mesh: PolyMesh, kinds: str, scale: float) -> Iterator[MeshOp]:
     """Every structural op of ``kinds`` on ``mesh`` with nominal parameters."""
-    conn = connectivity(mesh)
-    P = mesh.vertices.tolist()
+    view = mesh_view(mesh)
+    conn, P = view.conn, view.P
     for f in range(conn.n_faces):
         if "E" in kinds:
             yield Extrude(f, 0.1 * scale)
@@ -65,7 +66,7 @@ def skeletons(template: PolyMesh, goal: PolyMesh, kinds: str = STRUCTURAL, max_o
     want = connectivity_hash(goal)
     scale = template.diagonal
     frontier: list[tuple[tuple[MeshOp, ...], PolyMesh]] = [((), template)]
-    seen: set[tuple[str, bytes]] = set()
+    seen: set[tuple[str, bytes, tuple]] = set()
     spent = 0
     for depth in range(max_ops):
         nxt = []
@@ -81,8 +82,8 @@ def skeletons(template: PolyMesh, goal: PolyMesh, kinds: str = STRUCTURAL, max_o
                 if mesh.n_vertices > goal.n_vertices or mesh.n_faces > goal.n_faces:
                     continue
                 # the same mesh by another route (an edge loop named by any edge of its ring) is explored once
-                key = ("".join(o.letter for o in ops) + op.letter,
-                       np.round(mesh.vertices / scale, 9).tobytes() + repr(mesh.faces).encode())
+                key = ("".join(o.letter for o in ops) + op.letter, np.round(mesh.vertices / scale, 9).tobytes(),
+                       mesh.topology_key)
                 if key in seen:
                     continue
                 seen.add(key)
@@ -117,29 +118,20 @@ def _parameter(op: MeshOp) -> float | None:
     return None
 
 
-def _moves(state: PolyMesh, goal_vertices: np.ndarray, tol: float) -> tuple[tuple, PolyMesh] | None:
-    """:func:`~gsr_cad.ops.mesh.moves_to`, or None if some move is refused."""
-    moves, state, refused = moves_to(state, goal_vertices, tol)
-    return None if refused else (moves, state)
-
-
 def _fitted(template: PolyMesh, skeleton: Sequence[MeshOp], goal: PolyMesh, phi: np.ndarray, tol: float,
-            prefixes: dict | None = None) -> tuple[MeshOp, ...] | None:
+            prefixes: dict) -> tuple[tuple[MeshOp, ...], PolyMesh] | None:
     """The history "template moves, ``skeleton`` with fitted parameters, moves" for one isomorphism
-    ``phi`` (skeleton vertex -> goal vertex; vertices within ``tol`` need no move), or None if its ops
-    refuse."""
+    ``phi`` (skeleton vertex -> goal vertex; vertices within ``tol`` need no move) and the mesh it builds,
+    or None if its ops refuse. ``prefixes`` memoises the template moves (:func:`~gsr_cad.ops.mesh.moves_to`)
+    across calls."""
     target = goal.vertices[phi]
     n0 = template.n_vertices
     key = (target[:n0].tobytes(), tol)
-    if prefixes is not None and key in prefixes:
-        placed = prefixes[key]
-    else:
-        placed = _moves(template, target[:n0], tol)
-        if prefixes is not None:
-            prefixes[key] = placed
-    if placed is None:
+    if key not in prefixes:
+        prefixes[key] = moves_to(template, target[:n0], tol)
+    prefix, start, refused = prefixes[key]
+    if refused:
         return None
-    prefix, start = placed
     slots = [i for i, op in enumerate(skeleton) if _parameter(op) is not None]
     x0 = np.array([_parameter(skeleton[i]) for i in slots], dtype=float)
     miss = 10.0 * goal.diagonal
@@ -151,10 +143,8 @@ def _fitted(template: PolyMesh, skeleton: Sequence[MeshOp], goal: PolyMesh, phi:
         return ops
 
     def residual(x: np.ndarray) -> np.ndarray:
-        state = start
         try:
-            for op in ops_for(x):
-                state = op.apply(state)
+            state = replay(start, ops_for(x))
         except (OpError, ValueError, OverflowError):
             return np.full(target.size, miss)
         return (state.vertices - target).ravel()
@@ -166,16 +156,12 @@ def _fitted(template: PolyMesh, skeleton: Sequence[MeshOp], goal: PolyMesh, phi:
     else:
         x = x0
     ops = ops_for(x)
-    state = start
     try:
-        for op in ops:
-            state = op.apply(state)
+        state = replay(start, ops)
     except OpError:
         return None
-    rest = _moves(state, target, tol)
-    if rest is None:
-        return None
-    return tuple(prefix) + tuple(ops) + tuple(rest[0])
+    rest, built, refused = moves_to(state, target, tol)
+    return None if refused else (prefix + tuple(ops) + rest, built)
 
 
 def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: float | Sequence[float] = EXACT,
@@ -196,12 +182,12 @@ def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: fl
     if n_struct == 0 or n_struct > max_ops:
         return genome
     try:
-        goal = genome_mesh(template, genome)
+        goal = replay(template, genome)
     except OpError:
         return genome
     tolerances = sorted({max(float(t), EXACT) for t in np.atleast_1d(tolerance)}, reverse=True)
     found = [(skeleton, phi) for skeleton in skeletons(template, goal, kinds, n_struct, budget)
-             for phi in isomorphisms(genome_mesh(template, skeleton), goal, max_isomorphisms)]
+             for phi in isomorphisms(replay(template, skeleton), goal, max_isomorphisms)]
     best = genome
     prefixes: dict = {}
     for rel in tolerances:  # loosest first (fewest moves); a tighter one serves when ``accept`` vetoes it
@@ -215,24 +201,13 @@ def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: fl
         for least, _, skeleton, phi in tries:
             if least > cap:
                 break
-            history = _fitted(template, skeleton, goal, phi, tol, prefixes)
-            if history is None or len(history) > cap:
+            fitted = _fitted(template, skeleton, goal, phi, tol, prefixes)
+            if fitted is None or len(fitted[0]) > cap:
                 continue
-            try:
-                built = genome_mesh(template, history)
-            except OpError:
-                continue
+            history, built = fitted
             if np.abs(built.vertices - goal.vertices[phi]).max() <= tol and (accept is None or accept(history)):
                 best, cap = history, len(history) - 1
     return best
 
 
-def genome_mesh(template: PolyMesh, genome: Sequence[MeshOp]) -> PolyMesh:
-    """The mesh ``genome`` builds from ``template`` (OpError at the first op that cannot apply)."""
-    state = template
-    for op in genome:
-        state = op.apply(state)
-    return state
-
-
-__all__ = ["EXACT", "STRUCTURAL", "genome_mesh", "simplify_history", "skeletons"]
+__all__ = ["EXACT", "STRUCTURAL", "simplify_history", "skeletons"]

@@ -11,11 +11,54 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Literal
+from collections.abc import Callable
+from typing import Any, Literal, TypeVar
 
 from ..errors import ConfigError
 
 PRESETS = ("default", "paper")
+_ConfigT = TypeVar("_ConfigT", "CurveConfig", "SurfaceConfig")
+
+
+def _flag(field: str) -> str:
+    return field.replace("_", "-")
+
+
+def _real(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _whole(low: int) -> Callable[[Any], bool]:
+    return lambda value: isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+
+def _rate(value: Any) -> bool:
+    return _real(value) and 0.0 <= value <= 1.0
+
+
+def _finite_non_negative(value: Any) -> bool:
+    return _real(value) and math.isfinite(value) and value >= 0
+
+
+def _preset(cls: type[_ConfigT], kind: str, name: str, paper: dict[str, Any], overrides: dict[str, Any]
+            ) -> _ConfigT:
+    """Preset ``name`` ("paper": the fields ``paper``, else the defaults) with the non-None ``overrides``."""
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
+    unknown = sorted(set(overrides) - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise ConfigError(f"unknown {kind} setting(s): {', '.join(unknown)}")
+    base = dict(paper) if name == "paper" else {}
+    base.update({k: v for k, v in overrides.items() if v is not None})
+    return cls(**base).validated()
+
+
+def _check(config: Any, fields: tuple[str, ...], ok: Callable[[Any], bool], requirement: str) -> None:
+    """ConfigError naming the first of ``fields`` whose value is not ``ok`` (it "must ``requirement``")."""
+    for field in fields:
+        value = getattr(config, field)
+        if not ok(value):
+            raise ConfigError(f"{_flag(field)} must {requirement}, not {value!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,57 +93,37 @@ class CurveConfig:
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
-        if name not in PRESETS:
-            raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
-        base: dict[str, Any] = {}
-        if name == "paper":
-            base = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
-                        generations=300, stall_generations=0, threshold=-1.0)
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(overrides) - names)
-        if unknown:
-            raise ConfigError(f"unknown curve setting(s): {', '.join(unknown)}")
-        base.update({k: v for k, v in overrides.items() if v is not None})
-        return cls(**base).validated()
+        paper = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
+                     generations=300, stall_generations=0, threshold=-1.0)
+        return _preset(cls, "curve", name, paper, overrides)
 
     def validated(self) -> CurveConfig:
         """Return self, or raise ConfigError naming the first absurd setting."""
-        def bad(msg: str) -> ConfigError:
-            return ConfigError(msg)
-
         if self.scheme not in ("bspline", "chaikin"):
-            raise bad(f"scheme must be bspline or chaikin, not {self.scheme!r}")
+            raise ConfigError(f"scheme must be bspline or chaikin, not {self.scheme!r}")
         if self.fitness not in ("geometric", "index"):
-            raise bad(f"fitness must be geometric or index, not {self.fitness!r}")
-        for name in ("initial_population", "population", "generations", "min_ops", "min_initial_ops",
-                     "max_initial_ops", "fit_iterations"):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise bad(f"{name.replace('_', '-')} must be a positive whole number, not {value!r}")
+            raise ConfigError(f"fitness must be geometric or index, not {self.fitness!r}")
+        _check(self, ("initial_population", "population", "generations", "min_ops", "min_initial_ops",
+                      "max_initial_ops", "fit_iterations"), _whole(1), "be a positive whole number")
         if self.population < 2:
-            raise bad("population must be at least 2")
+            raise ConfigError("population must be at least 2")
         if self.initial_population < self.population:
-            raise bad("initial-population must be at least the population")
+            raise ConfigError("initial-population must be at least the population")
         if self.max_initial_ops < self.min_initial_ops:
-            raise bad("max-initial-ops must be >= min-initial-ops")
-        for name in ("mutation_rate", "delete_rate", "append_rate", "p_add"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
-                raise bad(f"{name.replace('_', '-')} must lie in [0, 1], not {value!r}")
+            raise ConfigError("max-initial-ops must be >= min-initial-ops")
+        _check(self, ("mutation_rate", "delete_rate", "append_rate", "p_add"), _rate, "lie in [0, 1]")
         if not (0.0 < self.elite_fraction < 1.0):
-            raise bad(f"elite-fraction must lie in (0, 1), not {self.elite_fraction!r}")
-        for name in ("tolerance", "bounds_margin", "move_scale", "max_seconds"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise bad(f"{name.replace('_', '-')} must be a finite number >= 0, not {value!r}")
+            raise ConfigError(f"elite-fraction must lie in (0, 1), not {self.elite_fraction!r}")
+        _check(self, ("tolerance", "bounds_margin", "move_scale", "max_seconds"), _finite_non_negative,
+               "be a finite number >= 0")
         if self.max_distance is not None and not (math.isfinite(self.max_distance) and self.max_distance > 0):
-            raise bad(f"max-distance must be a positive number, not {self.max_distance!r}")
+            raise ConfigError(f"max-distance must be a positive number, not {self.max_distance!r}")
         if not math.isfinite(self.threshold):
-            raise bad("threshold must be finite")
+            raise ConfigError("threshold must be finite")
         if self.stall_generations < 0 or self.max_control_points < 0:
-            raise bad("stall-generations and max-control-points must be >= 0")
+            raise ConfigError("stall-generations and max-control-points must be >= 0")
         if self.max_control_points and self.max_control_points < 4:
-            raise bad("max-control-points must be at least 4 (the template has 4)")
+            raise ConfigError("max-control-points must be at least 4 (the template has 4)")
         return self
 
     def to_json(self) -> dict[str, Any]:
@@ -174,42 +197,24 @@ class SurfaceConfig:
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> SurfaceConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
-        if name not in PRESETS:
-            raise ConfigError(f"unknown preset {name!r} (choose from {', '.join(PRESETS)})")
-        base: dict[str, Any] = {}
-        if name == "paper":
-            base = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
-                        polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0, simplify_history=False)
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(overrides) - names)
-        if unknown:
-            raise ConfigError(f"unknown surface setting(s): {', '.join(unknown)}")
-        base.update({k: v for k, v in overrides.items() if v is not None})
-        return cls(**base).validated()
+        paper = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
+                     polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0, simplify_history=False)
+        return _preset(cls, "surface", name, paper, overrides)
 
     def validated(self) -> SurfaceConfig:
         """Return self, or raise ConfigError naming the first absurd setting."""
-        def name_of(field: str) -> str:
-            return field.replace("_", "-")
-
         choices = {"template_fit": ("box", "cube"), "boundary": ("all", "corners"), "fitness": SURFACE_FITNESS}
         for field, allowed in choices.items():
-            if getattr(self, field) not in allowed:
-                raise ConfigError(f"{name_of(field)} must be one of {', '.join(allowed)}, not {getattr(self, field)!r}")
+            _check(self, (field,), allowed.__contains__, f"be one of {', '.join(allowed)}")
         kinds = self.op_kinds
-        if not isinstance(kinds, str) or not kinds or any(k not in "VELBIFS" for k in kinds) or len(set(kinds)) != len(kinds):
+        if not isinstance(kinds, str) or not kinds or set(kinds) - set("VELBIFS") or len(set(kinds)) != len(kinds):
             raise ConfigError(f"op-kinds must be distinct letters from VELBIFS, not {kinds!r}")
-        for field in ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
+        _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
-                      "max_duplicates", "generations", "stall_generations"):
-            value = getattr(self, field)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                raise ConfigError(f"{name_of(field)} must be a whole number >= 0, not {value!r}")
-        for field in ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
-                      "n_parents", "max_duplicates", "generations", "max_control_faces"):
-            if getattr(self, field) < 1:
-                raise ConfigError(f"{name_of(field)} must be at least 1, not {getattr(self, field)!r}")
+                      "max_duplicates", "generations", "stall_generations"), _whole(0), "be a whole number >= 0")
+        _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
+                      "n_parents", "max_duplicates", "generations", "max_control_faces"), _whole(1), "be at least 1")
         if self.levels > 4:
             raise ConfigError(f"levels must be at most 4 (each level quadruples the faces), not {self.levels}")
         if self.max_target_points and self.max_target_points < 4:
@@ -220,20 +225,11 @@ class SurfaceConfig:
             raise ConfigError("max-initial-ops must be >= min-initial-ops")
         if self.n_parents > self.population or self.n_perturb > self.population:
             raise ConfigError("n-parents and n-perturb must not exceed the population")
-        for field in ("mutation_rate", "delete_rate", "append_rate", "inward_rate"):
-            value = getattr(self, field)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
-                raise ConfigError(f"{name_of(field)} must lie in [0, 1], not {value!r}")
-        if not (isinstance(self.polish_gain, (int, float)) and 0.0 < self.polish_gain <= 1.0):
-            raise ConfigError(f"polish-gain must lie in (0, 1], not {self.polish_gain!r}")
-        for field in ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
-                      "max_seconds", "history_tolerance"):
-            value = getattr(self, field)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ConfigError(f"{name_of(field)} must be a finite number >= 0, not {value!r}")
-        if not (isinstance(self.max_scale_factor, (int, float)) and math.isfinite(self.max_scale_factor)
-                and self.max_scale_factor >= 1.0):
-            raise ConfigError(f"max-scale-factor must be a finite number >= 1, not {self.max_scale_factor!r}")
+        _check(self, ("mutation_rate", "delete_rate", "append_rate", "inward_rate"), _rate, "lie in [0, 1]")
+        _check(self, ("polish_gain",), lambda v: _real(v) and 0.0 < v <= 1.0, "lie in (0, 1]")
+        _check(self, ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
+                      "max_seconds", "history_tolerance"), _finite_non_negative, "be a finite number >= 0")
+        _check(self, ("max_scale_factor",), lambda v: _finite_non_negative(v) and v >= 1.0, "be a finite number >= 1")
         return self
 
     def to_json(self) -> dict[str, Any]:

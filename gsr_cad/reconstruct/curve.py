@@ -270,13 +270,14 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
     )
 
 
-def reconstruct_curve(points: np.ndarray | str, *, scheme: str | None = None, preset: str = "default",
+def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | None = None, preset: str = "default",
                       seed: int | None = None, config: CurveConfig | None = None,
                       progress: Callable[[GenerationReport], None] | None = None,
                       evaluator: Callable | None = None, **overrides: Any) -> Result:
     """Reconstruct a clamped uniform B-spline (or Chaikin) control polygon and its op history.
 
-    ``points``: an ``(n, 2)`` array of ordered points or a path to a CSV/TXT/NPY file. ``overrides`` are
+    ``points``: an ``(n, 2)`` array of ordered points, a path to a CSV/TXT/NPY file or a
+    :class:`~gsr_cad.reconstruct.inputs.CurveTarget`. ``overrides`` are
     :class:`CurveConfig` fields. Ctrl-C during the search keeps the best genome found so far
     (``result.interrupted``). Raises :class:`~gsr_cad.errors.InputError` / ``ConfigError`` on bad input.
     """
@@ -284,10 +285,8 @@ def reconstruct_curve(points: np.ndarray | str, *, scheme: str | None = None, pr
     target = curve_target(points)
     if scheme is not None:
         overrides["scheme"] = scheme
-    if config is None:
-        config = CurveConfig.preset(preset, **overrides)
-    else:
-        config = dataclasses.replace(config, **overrides).validated() if overrides else config.validated()
+    config = (CurveConfig.preset(preset, **overrides) if config is None
+              else dataclasses.replace(config, **overrides).validated())
     problem = CurveProblem(target, config)
     engine = GeneticAlgorithm(problem, _ga_config(config, problem), seed=seed, evaluator=evaluator)
     run: RunResult = engine.run(on_generation=progress)
@@ -311,5 +310,5 @@ def reconstruct_curve(points: np.ndarray | str, *, scheme: str | None = None, pr
         "bounds": [list(problem.template.lo), list(problem.template.hi)],
         "target": {"name": target.name, "n_points": len(target), "diagonal": target.diagonal},
     })
-    return Result(kind="curve", config=cfg, seed=seed, genome=final, metrics=metrics, history=run.history,
+    return Result(kind="curve", config=cfg, seed=run.seed, genome=final, metrics=metrics, history=run.history,
                   control_points=np.array(ctrl), interrupted=run.interrupted)

@@ -116,12 +116,17 @@ def validate_curve_points(points: np.ndarray, source: str = "points") -> np.ndar
         raise InputError(f"{source}: all points are equal")
     dup = np.flatnonzero(steps <= 1e-12 * scale)
     if dup.size:
-        raise InputError(f"{source}: points {dup[0] + 1} and {dup[0] + 2} are duplicates (consecutive points must differ)")
+        raise InputError(f"{source}: points {dup[0] + 1} and {dup[0] + 2} are duplicates "
+                         "(consecutive points must differ)")
     return pts
 
 
-def curve_target(points_or_path: np.ndarray | str | os.PathLike[str], name: str | None = None) -> CurveTarget:
-    """A validated :class:`CurveTarget` from an array or a file path."""
+def curve_target(points_or_path: np.ndarray | str | os.PathLike[str] | CurveTarget,
+                 name: str | None = None) -> CurveTarget:
+    """A validated :class:`CurveTarget` from an array, a file path or a target."""
+    if isinstance(points_or_path, CurveTarget):
+        pts = validate_curve_points(points_or_path.points, points_or_path.name)
+        return points_or_path if name is None else CurveTarget(pts, name)
     if isinstance(points_or_path, (str, os.PathLike)):
         pts = load_curve_points(points_or_path)
         return CurveTarget(pts, name or Path(points_or_path).stem)
@@ -175,6 +180,18 @@ class SurfaceTarget(_PointSet):
         from ..geometry.surface_distance import sampling_radius
 
         return sampling_radius(self.points, self.kdtree, CLOUD_SAMPLING_NEIGHBOURS)
+
+    def closest(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(distance, corresponding point)`` of each row of ``x`` to this target: the closest point on a
+        mesh's triangles; for a cloud the nearest sample, at the distance beyond its sampling radius (0
+        within it)."""
+        from ..geometry.surface_distance import cloud_distance
+
+        if self.triangle_set is not None:
+            c = self.triangle_set.closest(x)
+            return c.distance, c.point
+        d, idx = cloud_distance(x, self.points, self.sampling_radius, self.kdtree)
+        return d, self.points[idx]
 
     def __len__(self) -> int:
         return len(self.points)

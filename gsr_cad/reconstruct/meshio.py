@@ -19,6 +19,7 @@ import numpy as np
 from ..atomic import write_bytes, write_text
 from ..errors import ExportError, InputError, TopologyError
 from ..geometry.polymesh import PolyMesh
+from ..geometry.surface_distance import triangulate as fan_triangles
 from ..geometry.validation import validate_mesh
 
 READ_FORMATS = ("obj", "off", "ply", "stl")
@@ -267,11 +268,7 @@ def _ply_text(mesh: PolyMesh) -> str:
 
 def triangulate(mesh: PolyMesh) -> np.ndarray:
     """Fan triangles ``(m, 3)`` from each face's first corner (exact for convex faces)."""
-    first = np.repeat(mesh.offsets[:-1], mesh.face_sizes - 2)
-    local = np.arange(len(first)) - np.repeat(np.cumsum(mesh.face_sizes - 2) - (mesh.face_sizes - 2),
-                                              mesh.face_sizes - 2)
-    c = mesh.corners
-    return np.stack([c[first], c[first + local + 1], c[first + local + 2]], axis=1)
+    return fan_triangles(mesh.corners, mesh.offsets)
 
 
 def _stl_bytes(mesh: PolyMesh) -> bytes:

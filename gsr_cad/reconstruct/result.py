@@ -67,7 +67,8 @@ class Result:
         if not isinstance(data, dict):
             raise InputError("result.json must hold a JSON object")
         if data.get("version") != RESULT_VERSION:
-            raise InputError(f"result.json has version {data.get('version')!r}; this gsr_cad reads version {RESULT_VERSION}")
+            raise InputError(f"result.json has version {data.get('version')!r}; "
+                             f"this gsr_cad reads version {RESULT_VERSION}")
         kind = data.get("kind")
         if kind not in ("curve", "surface"):
             raise InputError(f"result.json has unknown kind {kind!r}")

@@ -53,7 +53,7 @@ import os
 import time
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -63,8 +63,7 @@ from ..errors import ConfigError, GsrError, InputError, OpError
 from ..ga import GAConfig, GenerationReport, GeneticAlgorithm, RunResult
 from ..geometry.polymesh import PolyMesh, unit_cube
 from ..geometry.subdivision import CatmullClark, get_catmull_clark
-from ..geometry.surface_distance import (TriangleSet, cloud_distance, mixed_mean_distance, point_to_surface,
-                                         triangulate)
+from ..geometry.surface_distance import TriangleSet, mixed_mean_distance, point_to_surface
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -119,6 +118,17 @@ class Evaluation:
     limit: PolyMesh
     triangles: np.ndarray
     cost: float
+
+
+class _Pairs(NamedTuple):
+    """Correspondences of one polish round: each target point's closest limit triangle (its limit-vertex
+    indices) and barycentric coordinates there; each limit vertex's target point and weight (see
+    :meth:`SurfaceProblem._back`)."""
+
+    triangles: np.ndarray
+    barycentric: np.ndarray
+    goal: np.ndarray
+    weight: np.ndarray
 
 
 class SurfaceProblem:
@@ -228,7 +238,7 @@ class SurfaceProblem:
     # --- scoring -------------------------------------------------------------------------------------------
     def _subdivision(self, mesh: PolyMesh) -> tuple[CatmullClark, np.ndarray]:
         cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
-        return cc, triangulate(cc.corners, cc.offsets)
+        return cc, cc.triangles
 
     def _distance(self, limit_vertices: np.ndarray, triangles: np.ndarray) -> float:
         """Cost of a limit mesh under the configured fitness, over the diagonal (both exact)."""
@@ -258,38 +268,40 @@ class SurfaceProblem:
         sample; a vertex within that sample's sampling radius costs nothing and is not pulled (weight 0),
         one beyond it pays the excess and is pulled towards it.
         """
-        target = self.target
-        if target.triangle_set is not None:
-            back = target.triangle_set.closest(X)
-            return back.distance, back.point, np.ones(len(X))
-        d, idx = cloud_distance(X, target.points, target.sampling_radius, target.kdtree)
-        return d, target.points[idx], (d > 0).astype(np.float64)
+        d, point = self.target.closest(X)
+        return d, point, np.ones(len(X)) if self.target.faces is not None else (d > 0).astype(np.float64)
 
-    def _round(self, X: np.ndarray, tris: np.ndarray, L: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray, float]:
-        """Least-squares rows of one polish round at limit vertices ``X``, and the symmetric cost of ``X``.
+    def _pairs(self, X: np.ndarray, tris: np.ndarray) -> tuple[_Pairs, float]:
+        """The closest-point correspondences of one polish round at limit vertices ``X``, and the symmetric
+        cost of ``X``.
 
         Target points pair with their closest points on the limit triangles (barycentric combinations of
-        limit vertices, hence rows of ``L``); limit vertices pair with the target as in :meth:`_back`.
+        limit vertices); limit vertices pair with the target as in :meth:`_back`.
         """
+        fwd = TriangleSet(X, tris).closest(self.points)
+        d_back, goal, weight = self._back(X)
+        cost = 0.5 * (fwd.distance.mean() + d_back.mean()) / self.diag
+        return _Pairs(tris[fwd.triangle], fwd.barycentric, goal, weight), float(cost)
+
+    def _system(self, X: np.ndarray, tris: np.ndarray, L: sp.csr_matrix, pairs: _Pairs
+                ) -> tuple[sp.csr_matrix, np.ndarray]:
+        """Least-squares rows of one polish round for the correspondences ``pairs`` found at ``X``."""
         P = self.points
         m, n_lim = len(P), len(X)
-        fwd = TriangleSet(X, tris).closest(P)
-        tri = tris[fwd.triangle]
-        A1 = sp.csr_matrix((fwd.barycentric.ravel(), (np.repeat(np.arange(m), 3), tri.ravel())),
+        tri = pairs.triangles
+        A1 = sp.csr_matrix((pairs.barycentric.ravel(), (np.repeat(np.arange(m), 3), tri.ravel())),
                            shape=(m, n_lim)) @ L
         n1 = _unit_rows(np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]))
-        d_back, C, w_back = self._back(X)
         J1, y1 = _rows(A1, n1, P, np.full(m, 1.0 / m))
-        J2, y2 = _rows(L, _unit_rows(_vertex_normals(X, tris)), C, w_back / n_lim)
-        cost = 0.5 * (fwd.distance.mean() + d_back.mean()) / self.diag
-        return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2]), float(cost)
+        J2, y2 = _rows(L, _unit_rows(_vertex_normals(X, tris)), pairs.goal, pairs.weight / n_lim)
+        return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
     def fit(self, mesh: PolyMesh, cc: CatmullClark, tris: np.ndarray, rounds: int,
             min_gain: float | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost.
 
-        Each round fixes the correspondences (see :meth:`_round`) and solves for the control vertices
+        Each round fixes the correspondences (see :meth:`_pairs`) and solves for the control vertices
         ``V`` (``limit = L V``) minimising, with both directions weighted as in the symmetric distance,
         the point-to-plane residuals (along the limit surface's normals, which lets the surface slide along
         itself and converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals,
@@ -306,12 +318,14 @@ class SurfaceProblem:
         normals0 = mesh.face_newell
         best_v, best_cost, last = V, math.inf, math.inf
         for r in range(rounds + 1):
-            J, y, cost = self._round(L @ V, tris, L)
+            X = L @ V
+            pairs, cost = self._pairs(X, tris)
             if cost < best_cost:
                 best_v, best_cost = V, cost
             if r == rounds or cost == 0.0 or cost >= min_gain * last:
                 break
             last = cost
+            J, y = self._system(X, tris, L, pairs)
             H = (J.T @ J).toarray()
             g = J.T @ y
             lam = self.config.polish_damping * max(float(np.trace(H)) / len(H), 1e-300)
@@ -340,11 +354,11 @@ class SurfaceProblem:
         move is instead made in 2 or 4 equal stages (every vertex a step per stage, following the straight
         path between the two meshes); if that fails too, the first attempt's partial moves stand.
         """
-        delta = goal - state.vertices
-        todo = [int(i) for i in np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12 * self.diag)]
         moves, current, refused = moves_to(state, goal, 1e-12 * self.diag)
         if not refused:
             return moves, current, 0
+        delta = goal - state.vertices
+        todo = [int(i) for i in np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12 * self.diag)]
         for stages in (2, 4):
             trial, steps = state, []
             try:
@@ -526,7 +540,7 @@ def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceCon
     normalized by the target's bounding-box diagonal."""
     cc = get_catmull_clark(control, config.levels, config.boundary)
     limit = cc.limit(control.vertices)
-    tris = triangulate(cc.corners, cc.offsets)
+    tris = cc.triangles
     diag = target.diagonal
     cloud = target.faces is None
     d = point_to_surface(limit.vertices, tris, target.points, target_surface=target.triangle_set,
@@ -567,6 +581,11 @@ class SurfaceResult(Result):
     snapshots: list[Snapshot] = dataclasses.field(default_factory=list, repr=False)
 
 
+def _letters(genome: tuple) -> str:
+    """The op letters of ``genome`` ("?" for an op without one)."""
+    return "".join(getattr(op, "letter", "?") for op in genome)
+
+
 def _pick_snapshots(changes: list[tuple[int, float, tuple]], count: int) -> list[tuple[int, float, tuple]]:
     """Up to ``count`` improvements spread over the run: the first, the last and evenly between."""
     if len(changes) <= count:
@@ -590,10 +609,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     """
     started = time.perf_counter()
     tgt = surface_target(target)
-    if config is None:
-        config = SurfaceConfig.preset(preset, **overrides)
-    else:
-        config = dataclasses.replace(config, **overrides).validated() if overrides else config.validated()
+    config = (SurfaceConfig.preset(preset, **overrides) if config is None
+              else dataclasses.replace(config, **overrides).validated())
     tmpl = make_template(template, tgt, config)
     problem = SurfaceProblem(tgt, config, tmpl)
     engine = GeneticAlgorithm(problem, _ga_config(config), seed=seed, evaluator=evaluator)
@@ -611,7 +628,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True)) if best else best
     polished_at = time.perf_counter()
     polish_seconds = polished_at - searched
-    searched_ops = "".join(getattr(op, "letter", "?") for op in final)
+    searched_ops = _letters(final)
     if config.simplify_history and final:
         final = problem.simplified(final)
     simplify_seconds = time.perf_counter() - polished_at
@@ -633,7 +650,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "evaluations": run.evaluations,
         "stop_reason": run.stop_reason,
         "n_ops": len(final),
-        "ops": "".join(getattr(op, "letter", "?") for op in final),
+        "ops": _letters(final),
     })
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
