@@ -12,8 +12,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("sample", help="write a bundled sample target (the paper's examples among them)",
                               description=__doc__.splitlines()[0])
     p.add_argument("name", nargs="?", metavar="NAME", help="sample name (see --list)")
-    p.add_argument("-o", "--output", metavar="FILE",
+    p.add_argument("-o", "--out", dest="output", metavar="FILE",
                    help="where to write the target (curves: CSV with header x,y, or .npy; surfaces: mesh file)")
+    p.add_argument("--output", dest="output", help=argparse.SUPPRESS)  # the old spelling, kept working
     p.add_argument("--truth", metavar="FILE",
                    help="also write the ground truth (control polygon), if the sample has one")
     p.add_argument("--clean", metavar="FILE", help="also write the dense noise-free reference (curves)")

@@ -14,8 +14,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p = subparsers.add_parser("subdivide", help="Catmull-Clark subdivide a polygon mesh (OBJ, OFF, PLY, STL)",
                               description=__doc__.splitlines()[0])
     p.add_argument("mesh", metavar="MESH", help="control mesh: .obj, .off or .ply (n-gons kept) or .stl")
-    p.add_argument("-o", "--output", required=True, metavar="OUT",
+    p.add_argument("-o", "--out", dest="output", metavar="OUT",
                    help="refined mesh to write: .obj, .off, .ply (quads) or .stl (triangulated)")
+    p.add_argument("--output", dest="output", help=argparse.SUPPRESS)  # the old spelling, kept working
     p.add_argument("--levels", type=int, default=DEFAULT_LEVELS, metavar="K",
                    help=f"subdivision steps (default {DEFAULT_LEVELS})")
     p.add_argument("--limit", action="store_true",
@@ -31,6 +32,8 @@ def run(args: argparse.Namespace) -> int:
     from ..geometry.validation import mesh_report
     from ..reconstruct.meshio import WRITE_FORMATS, load_mesh, save_mesh
 
+    if not args.output:
+        raise InputError("subdivide needs -o OUT (the refined mesh to write)")
     out = Path(args.output)
     if out.suffix.lower().lstrip(".") not in WRITE_FORMATS:
         raise InputError(f"{out.name}: cannot write format {out.suffix or '(no suffix)'!r} "
