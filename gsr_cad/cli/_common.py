@@ -21,28 +21,70 @@ def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
+_METAVARS = {int: "N", float: "X", str: "TEXT"}
+
+
+def _shown_default(field: dataclasses.Field, length: bool) -> str:
+    """The default of ``field`` as the help text shows it."""
+    value = field.default
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if length:
+        return f"{100 * value:g}% of the diagonal" if value else "0"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _config_flag_kwargs(field: dataclasses.Field, hint: Any) -> dict[str, Any]:
+    """argparse keywords of one config field: type, metavar or choices, and a help sentence with its default."""
+    from ..reconstruct.units import is_length_field, parse_length
+
+    args, origin = typing.get_args(hint), typing.get_origin(hint)
+    meta = field.metadata
+    length = is_length_field(field)
+    kwargs: dict[str, Any] = {"dest": f"cfg_{field.name}", "default": None}
+    text = meta.get("help") or field.name.replace("_", " ").capitalize() + "."
+    if length:
+        kwargs.update(type=_length_arg(parse_length), metavar="DIST")
+        text += " DIST: model units (see --units), or N% of the target's bounding-box diagonal."
+    elif hint is bool:
+        kwargs["action"] = argparse.BooleanOptionalAction
+    elif origin is Literal or meta.get("choices"):
+        kwargs["choices"] = list(meta.get("choices") or args)
+    else:
+        inner = next(a for a in args if a is not type(None)) if origin in (typing.Union, types.UnionType) else hint
+        kwargs.update(type=inner, metavar="LETTERS" if meta.get("letters") else _METAVARS.get(inner, "X"))
+    if meta.get("letters"):
+        text += " " + ", ".join(f"{k} {v}" for k, v in meta["letters"].items()) + "."
+    kwargs["help"] = f"{text} Default: {_shown_default(field, length)}.".replace("%", "%%")
+    return kwargs
+
+
+def _length_arg(parse: Any) -> Any:
+    """An argparse type for lengths: a bad value becomes argparse's one-line usage error."""
+    from ..errors import ConfigError
+
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ConfigError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = "length"
+    return convert
+
+
 def add_config_flags(parser: argparse.ArgumentParser, config_cls: type, skip: tuple[str, ...] = ()) -> None:
-    """One flag per config field (``--field-name``), typed from the dataclass annotations."""
+    """One flag per config field (``--field-name``), typed from the dataclass annotations, its help sentence
+    from the field's ``metadata["help"]`` (see :func:`gsr_cad.reconstruct.config._field`) plus its default.
+    Length fields take model units or ``N%`` of the diagonal (:class:`~gsr_cad.reconstruct.units.Length`,
+    resolved by :func:`~gsr_cad.reconstruct.units.resolve_lengths` once the target is loaded)."""
     hints = typing.get_type_hints(config_cls)
-    group = parser.add_argument_group("settings (defaults from --preset)")
+    group = parser.add_argument_group("settings (defaults from --preset default; --preset paper changes some)")
     for field in dataclasses.fields(config_cls):
-        if field.name in skip:
-            continue
-        hint = hints[field.name]
-        args = typing.get_args(hint)
-        origin = typing.get_origin(hint)
-        kwargs: dict[str, Any] = {"dest": f"cfg_{field.name}", "default": None}
-        if hint is bool:
-            kwargs["action"] = argparse.BooleanOptionalAction
-        elif origin is Literal:
-            kwargs["choices"] = list(args)
-        elif origin in (typing.Union, types.UnionType):
-            inner = next(a for a in args if a is not type(None))
-            kwargs["type"] = inner
-        else:
-            kwargs["type"] = hint
-        kwargs["help"] = f"default {field.default!r}"
-        group.add_argument(_flag(field.name), **kwargs)
+        if field.name not in skip:
+            group.add_argument(_flag(field.name), **_config_flag_kwargs(field, hints[field.name]))
 
 
 def config_overrides(args: argparse.Namespace, config_cls: type) -> dict[str, Any]:

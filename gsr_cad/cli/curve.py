@@ -7,6 +7,7 @@ import argparse
 from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
+from ..reconstruct.units import resolve_lengths
 from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
                       write_control_points, write_exports)
 from .progress import ga_progress
@@ -29,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = curve_target(args.points)
-    overrides = config_overrides(args, CurveConfig)
+    overrides = resolve_lengths(config_overrides(args, CurveConfig), target.diagonal, CurveConfig)
     config = CurveConfig.preset(args.preset, **overrides)
     truth = load_curve_points(args.truth) if args.truth else None
     formats = parse_formats(args.formats, "curve")

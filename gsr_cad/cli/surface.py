@@ -17,6 +17,7 @@ from ..reconstruct.config import PRESETS, SurfaceConfig
 from ..reconstruct.inputs import surface_target
 from ..reconstruct.meshio import save_obj
 from ..reconstruct.surface import make_template, reconstruct_surface
+from ..reconstruct.units import resolve_lengths
 from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
                       write_exports)
 from .progress import ga_progress
@@ -43,7 +44,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = surface_target(args.target)
-    config = SurfaceConfig.preset(args.preset, **config_overrides(args, SurfaceConfig))
+    overrides = resolve_lengths(config_overrides(args, SurfaceConfig), target.diagonal, SurfaceConfig)
+    config = SurfaceConfig.preset(args.preset, **overrides)
     make_template(args.template, target, config)  # a bad template file fails here, before any output
     if args.workers < 1:
         raise ConfigError(f"workers must be at least 1, not {args.workers}")
