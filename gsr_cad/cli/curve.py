@@ -11,6 +11,7 @@ from ..reconstruct.units import resolve_lengths
 from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
                       write_control_points, write_exports)
 from .progress import ga_progress
+from .summary import add_model_units, finish
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -38,16 +39,11 @@ def run(args: argparse.Namespace) -> int:
     with ga_progress(f"curve {target.name}", enabled=not args.quiet) as on_generation:
         result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
                                    progress=on_generation)
+    add_model_units(result)
     result.save(out)
     write_control_points(out / "control_points.csv", result.control_points)
     plots = plots_module()
     plots.curve_report(result, target.points, out / "report.png", truth=truth)
     written = write_exports(result, out, formats)
-    m = result.metrics
-    status = "interrupted: best so far" if result.interrupted else "done"
-    print(f"{status}: {m['n_control_points']} control points, mean distance {m['mean_distance']:.3g}, "
-          f"max {m['max_distance']:.3g} of the diagonal, {m['seconds']:.2f} s -> {out}")
-    for path in written:
-        print(f"  wrote {path}")
-    return 0
+    return finish(result, out, written)
 

@@ -21,6 +21,7 @@ from ..reconstruct.units import resolve_lengths
 from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
                       write_exports)
 from .progress import ga_progress
+from .summary import add_model_units, finish, template_warning, warn
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -46,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     target = surface_target(args.target)
     overrides = resolve_lengths(config_overrides(args, SurfaceConfig), target.diagonal, SurfaceConfig)
     config = SurfaceConfig.preset(args.preset, **overrides)
-    make_template(args.template, target, config)  # a bad template file fails here, before any output
+    template = make_template(args.template, target, config)  # a bad template file fails here, before any output
+    warn(template_warning(template, target, args.template))
     if args.workers < 1:
         raise ConfigError(f"workers must be at least 1, not {args.workers}")
     formats = parse_formats(args.formats, "surface")
@@ -56,17 +58,10 @@ def run(args: argparse.Namespace) -> int:
         on_generation = stack.enter_context(ga_progress(f"surface {target.name}", enabled=not args.quiet))
         result = reconstruct_surface(target, template=args.template, seed=args.seed, config=config,
                                      preset=args.preset, progress=on_generation, evaluator=pool)
+    add_model_units(result)
     written = [result.save(out), save_obj(result.control_mesh, out / "control_mesh.obj"),
                save_obj(limit_mesh(result.control_mesh, config.levels, config.boundary), out / "limit_mesh.obj")]
     plots = plots_module()
     written.append(plots.surface_report(result, out / "report.png"))
     written += write_exports(result, out, formats)
-    m = result.metrics
-    status = "interrupted: best so far" if result.interrupted else "done"
-    print(f"{status}: {m['n_control_faces']} control faces, {m['n_control_vertices']} vertices, "
-          f"ops {plots.run_length(m['ops']) or '-'}; "
-          f"mean distance {m['mean_distance']:.3g}, max {m['max_distance']:.3g} of the diagonal "
-          f"(mixed mean {m['mixed_mean_distance']:.3g}), {m['seconds']:.1f} s -> {out}")
-    for path in written:
-        print(f"  wrote {path}")
-    return 0
+    return finish(result, out, written)
