@@ -17,6 +17,7 @@ import numpy as np
 from .atomic import atomic_path
 from .errors import InputError
 from .reconstruct.result import Result
+from .reconstruct.summary import run_length
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -367,18 +368,6 @@ def surface_figure(result: Result, target=None, snapshots: Sequence[Any] | None 
                  f"{_subtitle(result, 110)}",
                  fontsize=11)
     return fig
-
-
-def run_length(letters: str) -> str:
-    """Op letters with repeats counted: ``LVVVV`` -> ``L V4``."""
-    out, i = [], 0
-    while i < len(letters):
-        j = i
-        while j < len(letters) and letters[j] == letters[i]:
-            j += 1
-        out.append(letters[i] + (str(j - i) if j - i > 1 else ""))
-        i = j
-    return " ".join(out)
 
 
 def surface_report(result: Result, path: str | os.PathLike[str], target=None, snapshots: Sequence[Any] | None = None,
