@@ -44,18 +44,28 @@ def deviation_along_curve(ctrl: np.ndarray, target: np.ndarray, degree: int, n: 
     colour bar's top equals the max distance, and an exact fit shows as zero even for sparse data (the
     chords between sparse points would show their sag as error).
     """
-    from scipy.spatial import cKDTree
-
     from .geometry.bspline import sample_uniform
-    from .geometry.distance import foot_points, point_to_polyline
+    from .geometry.distance import point_to_polyline
 
     if len(ctrl) <= degree:  # too few points for a curve: the polygon stands in for it
         return ctrl, point_to_polyline(ctrl, target), point_to_polyline(target, ctrl)
     curve = sample_uniform(ctrl, n, degree)
-    _, nearest = cKDTree(curve).query(target)
-    params, dist = foot_points(ctrl, target, nearest / (n - 1), degree)
+    params, dist = target_feet(ctrl, target, degree, curve)
     order = np.argsort(params, kind="stable")
     return curve, np.interp(np.linspace(0.0, 1.0, n), params[order], dist[order]), dist
+
+
+def target_feet(ctrl: np.ndarray, target: np.ndarray, degree: int, curve: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each target point's foot parameter on the curve (in [0, 1]) and its distance to the curve."""
+    from scipy.spatial import cKDTree
+
+    from .geometry.bspline import sample_uniform
+    from .geometry.distance import foot_points
+
+    curve = sample_uniform(ctrl, CURVE_SAMPLES, degree) if curve is None else curve
+    _, nearest = cKDTree(curve).query(target)
+    return foot_points(ctrl, target, nearest / (len(curve) - 1), degree)
 
 
 def _fmt(x: float) -> str:

@@ -128,6 +128,17 @@ def plots_module() -> types.ModuleType:
     return plots
 
 
+def html_module() -> types.ModuleType:
+    """:mod:`gsr_cad.html_report` (imported on demand: it loads plotly), or ExportError if plotly is broken."""
+    try:
+        from .. import html_report
+
+        html_report._plotly()
+    except ImportError as exc:
+        raise ExportError(f"cannot write report.html: {exc}") from None
+    return html_report
+
+
 def _formats_module():
     from . import formats  # the exporter registry (entry points)
 

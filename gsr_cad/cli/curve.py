@@ -8,8 +8,8 @@ from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
 from ..reconstruct.units import resolve_lengths
-from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
-                      write_control_points, write_exports)
+from ._common import (add_config_flags, config_overrides, html_module, parse_formats, plots_module,
+                      prepare_out_dir, write_control_points, write_exports)
 from .progress import ga_progress
 from .summary import add_model_units, finish
 
@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     result.save(out)
     write_control_points(out / "control_points.csv", result.control_points)
     plots = plots_module()
-    plots.curve_report(result, target.points, out / "report.png", truth=truth)
-    written = write_exports(result, out, formats)
+    png = plots.curve_report(result, target.points, out / "report.png", truth=truth)
+    html = html_module().curve_html(result, target.points, out / "report.html", truth=truth)
+    written = [png, html, *write_exports(result, out, formats)]
     return finish(result, out, written)
 

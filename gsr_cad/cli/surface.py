@@ -18,8 +18,8 @@ from ..reconstruct.inputs import surface_target
 from ..reconstruct.meshio import save_obj
 from ..reconstruct.surface import make_template, reconstruct_surface
 from ..reconstruct.units import resolve_lengths
-from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
-                      write_exports)
+from ._common import (add_config_flags, config_overrides, html_module, parse_formats, plots_module,
+                      prepare_out_dir, write_exports)
 from .progress import ga_progress
 from .summary import add_model_units, finish, template_warning, warn
 
@@ -63,5 +63,6 @@ def run(args: argparse.Namespace) -> int:
                save_obj(limit_mesh(result.control_mesh, config.levels, config.boundary), out / "limit_mesh.obj")]
     plots = plots_module()
     written.append(plots.surface_report(result, out / "report.png"))
+    written.append(html_module().surface_html(result, out / "report.html"))
     written += write_exports(result, out, formats)
     return finish(result, out, written)

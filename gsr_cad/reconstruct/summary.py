@@ -115,8 +115,9 @@ def headline(result: Result) -> str:
     return f"{status}: {built} from {len(result.genome)} ops; stopped: {stop_text(result)}"
 
 
-def summary_lines(result: Result, out: Path) -> list[str]:
-    lines = [headline(result) + f" -> {out}", *distance_lines(result)]
+def summary_lines(result: Result, out: Path | None = None) -> list[str]:
+    """The headline (with the output directory), the distances both ways, the paper's measure for surfaces."""
+    lines = [headline(result) + (f" -> {out}" if out is not None else ""), *distance_lines(result)]
     mixed = result.metrics.get("mixed_mean_distance")
     if result.kind == "surface" and _real(mixed):
         lines.append(f"  the paper's mixed mean distance: {mixed:.3g} of the diagonal (a pairing measure, not a "
