@@ -75,7 +75,7 @@ def _write(path: str | os.PathLike[str], text: str) -> Path:
 
 
 def _pct_hover(unit: str) -> str:
-    return f"%{{y:.4g}} {unit} (%{{customdata:.3g}} %% of the diagonal)<extra>%{{fullData.name}}</extra>"
+    return f"%{{y:.4g}} {unit} (%{{customdata:.3g}} % of the diagonal)<extra>%{{fullData.name}}</extra>"
 
 
 def _convergence(go: Any, result: Result) -> Any:
@@ -121,7 +121,7 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
         x=curve[:, 0], y=curve[:, 1], mode="markers+lines", name="result", line={"color": "#bbbbbb", "width": 1},
         customdata=100 * dev / diag, marker={"color": dev, "colorscale": COLOURSCALE, "size": 5, "cmin": 0,
                                             "colorbar": {"title": f"deviation, {unit}", "tickformat": ".3g"}},
-        hovertemplate=f"deviation %{{marker.color:.4g}} {unit} (%{{customdata:.3g}} %% of the diagonal)"))
+        hovertemplate=f"deviation %{{marker.color:.4g}} {unit} (%{{customdata:.3g}} % of the diagonal)"))
     shape.add_trace(go.Scatter(x=ctrl[:, 0], y=ctrl[:, 1], mode="lines+markers", name="control polygon",
                                line={"color": "#d62728", "dash": "dot"}, marker={"size": 7}))
     if truth_pts is not None:
@@ -239,7 +239,7 @@ def surface_html(result: Result, path: str | os.PathLike[str], target: Any = Non
     colour = {"intensity": dist, "colorscale": COLOURSCALE, "cmin": 0.0, "cmax": top or 1e-12,
               "colorbar": {"title": f"distance to target, {unit}", "tickformat": ".3g"},
               "customdata": 100 * dist / diag,
-              "hovertemplate": f"%{{intensity:.4g}} {unit} (%{{customdata:.3g}} %% of the diagonal)"}
+              "hovertemplate": f"%{{intensity:.4g}} {unit} (%{{customdata:.3g}} % of the diagonal)"}
     side = make_subplots(rows=1, cols=2, specs=[[{"type": "scene"}, {"type": "scene"}]],
                          subplot_titles=("target", f"result (level-{levels} limit surface and control mesh)"))
     if target is not None:

@@ -35,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     config = CurveConfig.preset(args.preset, **overrides)
     truth = load_curve_points(args.truth) if args.truth else None
     formats = parse_formats(args.formats, "curve")
+    reports = html_module()  # a broken plotly install fails here, before the run
     out = prepare_out_dir(args.out)
     with ga_progress(f"curve {target.name}", enabled=not args.quiet) as on_generation:
         result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     write_control_points(out / "control_points.csv", result.control_points)
     plots = plots_module()
     png = plots.curve_report(result, target.points, out / "report.png", truth=truth)
-    html = html_module().curve_html(result, target.points, out / "report.html", truth=truth)
+    html = reports.curve_html(result, target.points, out / "report.html", truth=truth)
     written = [png, html, *write_exports(result, out, formats)]
     return finish(result, out, written)
 

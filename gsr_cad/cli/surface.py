@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise ConfigError(f"workers must be at least 1, not {args.workers}")
     formats = parse_formats(args.formats, "surface")
+    reports = html_module()  # a broken plotly install fails here, before the run
     out = prepare_out_dir(args.out)
     with contextlib.ExitStack() as stack:
         pool = stack.enter_context(ProcessPoolEvaluator(max_workers=args.workers)) if args.workers > 1 else None
@@ -63,6 +64,6 @@ def run(args: argparse.Namespace) -> int:
                save_obj(limit_mesh(result.control_mesh, config.levels, config.boundary), out / "limit_mesh.obj")]
     plots = plots_module()
     written.append(plots.surface_report(result, out / "report.png"))
-    written.append(html_module().surface_html(result, out / "report.html"))
+    written.append(reports.surface_html(result, out / "report.html"))
     written += write_exports(result, out, formats)
     return finish(result, out, written)
