@@ -59,6 +59,14 @@ def op_label(op: Any) -> str:
     return getattr(op, "letter", "") or getattr(op, "name", type(op).__name__)
 
 
+def op_text(op: Any) -> str:
+    """A sentence for one op (its ``describe()``, else its label)."""
+    try:
+        return str(op.describe())
+    except (AttributeError, NotImplementedError):
+        return op_label(op)
+
+
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     ab = b - a
     t = float(np.clip(np.dot(p - a, ab) / max(float(np.dot(ab, ab)), 1e-300), 0.0, 1.0))

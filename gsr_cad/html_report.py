@@ -274,7 +274,7 @@ def _surface_history(go: Any, states: list, genome: Sequence[Any], levels: int, 
         fig.add_trace(_wire(go, states[k], f"control mesh after {k} ops", visible=i == len(steps) - 1))
     slider = [{"label": f"{k}" + (f" {hist.op_label(genome[k - 1])}" if k else " template"), "method": "update",
                "args": [{"visible": [j // 2 == i for j in range(2 * len(steps))]},
-                        {"title": f"after {k} ops" + (f": {genome[k - 1].describe()}" if k else " (template)")}]}
+                        {"title": f"after {k} ops" + (f": {hist.op_text(genome[k - 1])}" if k else " (template)")}]}
               for i, k in enumerate(steps)]
     fig.update_layout(height=520, margin={"t": 40}, title=f"after {steps[-1]} ops (the result)",
                       scene={"aspectmode": "data", "xaxis_title": f"x ({unit})", "yaxis_title": f"y ({unit})",
