@@ -39,6 +39,8 @@ def test_a_tolerance_in_mm_is_met_and_read_back_in_mm(gsr, noisy, tmp_path):
     assert f"max-distance tolerance 0.5 mm ({100 * 0.5 / diag:.3g} %): met" in run.out
     assert f"max {m['max_distance_model']:.3g} mm ({100 * m['max_distance']:.3g} %)" in run.out
     assert "stopped: " in run.out and run.err == ""
+    page = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")  # the interactive report, beside it
+    assert "lengths in mm" in page and "deviation, mm" in page
 
 
 def test_a_missed_tolerance_warns_once_and_exits_3(gsr, noisy, tmp_path):
