@@ -1,17 +1,25 @@
-"""``gsr replay OUT/result.json -o DIR [--formats ...]``: re-export a saved result without re-running."""
+"""``gsr replay OUT/result.json -o DIR [--formats ...]``: rebuild a saved result from its genome and re-export it.
+
+The ops are the source of truth: the genome is replayed on the template stored in result.json, so an
+edited op gives new control geometry in every export (and in DIR/result.json, control_points.csv or
+control_mesh.obj); stored control geometry that disagrees with the replay is reported on stderr
+("note: ...") and replaced. An op that no longer applies is an error naming it.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 from pathlib import Path
 
-from ..atomic import write_bytes
+from ..atomic import write_text
 from ..reconstruct.result import Result
 from ._common import parse_formats, prepare_out_dir, write_control_points, write_exports
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("replay", help="re-export a saved result.json in CAD formats (no new run)",
+    p = sub.add_parser("replay", help="rebuild a saved result.json from its genome and re-export it (no new run)",
                        description=__doc__.splitlines()[0])
     p.add_argument("result", help="result.json, or the directory holding it")
     p.add_argument("-o", "--out", required=True, help="output directory")
@@ -23,6 +31,8 @@ def run(args: argparse.Namespace) -> int:
     source = Path(args.result)
     source = source / "result.json" if source.is_dir() else source
     result = Result.load(source)
+    for note in result.notes:
+        print(f"note: {note}", file=sys.stderr)
     formats = parse_formats(args.formats, result.kind)
     out = prepare_out_dir(args.out)
     written = write_exports(result, out, formats)
@@ -33,8 +43,9 @@ def run(args: argparse.Namespace) -> int:
 
         written.append(save_obj(result.control_mesh, out / "control_mesh.obj"))
     target = out / "result.json"
-    if not (target.exists() and target.resolve() == source.resolve()):
-        written.append(write_bytes(target, source.read_bytes()))
+    text = json.dumps(result.to_json(), indent=1) + "\n"
+    if not (target.is_file() and target.read_text(encoding="utf-8") == text):
+        written.append(write_text(target, text))
     for path in written:
         print(f"wrote {path}")
     return 0
