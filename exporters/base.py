@@ -23,14 +23,15 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import shutil
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
-from gsr_cad.atomic import write_text
+from gsr_cad.atomic import atomic_path, write_text
 from gsr_cad.errors import ExportError
 
 from .model import CurveSpline
@@ -137,6 +138,20 @@ def scratch_dir() -> Iterator[Path]:
     """A temporary directory for host outputs during validation, removed afterwards."""
     with tempfile.TemporaryDirectory(prefix="gsr-validate-") as d:
         yield Path(d)
+
+
+def save_host_document(script_name: str, text: str, path: Path, run: Callable[[Path, Path], Any]) -> Path:
+    """Write ``text`` as ``script_name`` in a scratch directory, let ``run(script, document)`` make the host
+    save its document there, and copy that onto ``path`` atomically; ExportError when no document came."""
+    with scratch_dir() as tmp:
+        script, document = tmp / script_name, tmp / ("document" + Path(path).suffix)
+        write_text(script, text)
+        run(script, document)
+        if not document.is_file():
+            raise ExportError(f"the host saved no document for {Path(path).name}")
+        with atomic_path(path) as target:
+            shutil.copyfile(document, target)
+    return Path(path)
 
 
 class Exporter:

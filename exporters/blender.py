@@ -33,7 +33,7 @@ from gsr_cad.ops.mesh_kernel import bbox_centre
 
 from . import hosts
 from .base import (EXACT_TOL, SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
-                   scratch_dir, skipped)
+                   save_host_document, scratch_dir, skipped)
 from .encode import fill_python
 from .model import CurveModel, curve_model, read_obj, same_mesh, surface_labels, surface_model
 
@@ -136,6 +136,14 @@ class BlenderExporter(Exporter):
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         return {self.filename(stem): curve_script(curve_model(result), _title(stem))}
+
+    document_suffix = ".blend"
+
+    def save_document(self, result: Any, path: Path) -> Path:
+        """Run the script in background Blender and save the Blender file as ``path`` (a ``.blend``)."""
+        (name, text), = self.render(result, Path(path).stem).items()
+        return save_host_document(name, text, path,
+                                  lambda script, doc: hosts.run_blender(script, ["--blend", doc], timeout=600))
 
     def _run(self, path: Path, args: Sequence[str]) -> Check | None:
         try:

@@ -32,7 +32,7 @@ from gsr_cad.geometry.polymesh import PolyMesh
 
 from . import hosts
 from .base import EXACT_TOL, SAMPLE_TOL, Check, Exporter, curve_checks, expect_equal, failed, measured, \
-    point_deviation, scratch_dir, skipped
+    point_deviation, save_host_document, scratch_dir, skipped
 from .checks import PATCH_GRID, freecad_read
 from .encode import fill_python
 from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_model, patch_data, same_mesh, \
@@ -64,6 +64,13 @@ class FreecadMacroExporter(Exporter):
             "dimension": int(spline.poles.shape[1]),
             "steps": [{"label": h.label, "op": h.op, "points": h.points.tolist()} for h in model.history]})
         return {self.filename(stem): text}
+
+    document_suffix = ".FCStd"
+
+    def save_document(self, result: Any, path: Path) -> Path:
+        """Run the macro in ``freecadcmd`` and save its document as ``path`` (an ``.FCStd``)."""
+        (name, text), = self.render(result, Path(path).stem).items()
+        return save_host_document(name, text, path, lambda script, doc: hosts.run_freecad(script, [doc], timeout=600))
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
         if reason := hosts.missing("freecad"):

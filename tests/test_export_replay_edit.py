@@ -101,3 +101,32 @@ def test_an_edited_surface_op_moves_every_export(gsr, tmp_path):
     checks = validate(second)
     assert failures(checks) == []
     assert {"blender", "freecad", "openscad", "OCP"} <= _host_rows(checks)
+
+
+@pytest.mark.blender
+@pytest.mark.freecad
+def test_replay_saves_the_host_documents(gsr, tmp_path):
+    import subprocess
+
+    if not (hosts.find_host("blender") and hosts.find_host("freecad")):
+        pytest.skip("needs Blender and FreeCAD")
+    from gsr_cad.exporters.checks import freecad_read
+
+    result = hand_result(seed=45, n_ops=5)
+    result.save(tmp_path / "in")
+    fcstd, blend = tmp_path / "docs" / "curve.FCStd", tmp_path / "docs" / "curve.blend"
+    run = gsr("replay", tmp_path / "in", "-o", tmp_path / "out", "--formats", "svg", "--fcstd", fcstd, "--blend", blend)
+    assert run.code == 0, run.err
+    assert f"wrote {fcstd}" in run.out and f"wrote {blend}" in run.out
+    seen = freecad_read(fcstd, params=[0.0, 1.0])
+    assert len(seen["steps"]) == len(result.genome) + 1 and seen["curve"]["degree"] == 3
+    np.testing.assert_allclose(np.array(seen["steps"][-1]["nodes"])[:, :2], result.control_points, atol=1e-12)
+    probe = ("import bpy, json, sys; "
+             "sys.stdout.write('OBJECTS ' + json.dumps(sorted(o.name for o in bpy.data.objects)) + '\\n')")
+    proc = subprocess.run([hosts.find_host("blender"), "-b", str(blend), "--python-expr", probe], capture_output=True,
+                          text=True, timeout=300)
+    line = next(x for x in proc.stdout.splitlines() if x.startswith("OBJECTS "))
+    names = json.loads(line[len("OBJECTS "):])
+    assert "curve" in names and len(names) == len(result.genome) + 2  # the steps and the NURBS curve, no cube
+    bad = gsr("replay", tmp_path / "in", "-o", tmp_path / "out2", "--fcstd", tmp_path / "x.step")
+    assert bad.code == 2 and "--fcstd needs a file name ending in .fcstd" in bad.err and not (tmp_path / "out2").exists()

@@ -155,3 +155,31 @@ def test_bezier_pieces_are_the_curve(n, scheme, seed):
     got = np.einsum("ti,sid->std", coeff, pieces).reshape(-1, 2)
     params = ((np.arange(spline.n_spans)[:, None] + t[None]) / spline.n_spans).ravel()
     np.testing.assert_allclose(got, scipy_curve(result, params), atol=1e-9 * np.abs(pts).max())
+
+
+@pytest.mark.parametrize("kind", ["curve", "surface"])
+def test_one_replay_and_one_limit_mesh_per_export_run_and_per_validation(kind, tmp_path, monkeypatch):
+    from test_export_surface_hosts import surface_result
+
+    from gsr_cad.ops.base import Op
+    from gsr_cad.reconstruct.export import export, format_names, validate
+
+    for host in ("BLENDER", "FREECAD", "OPENSCAD", "CADQUERY_PYTHON"):  # count our work, not the hosts'
+        monkeypatch.setenv(f"GSR_{host}", str(tmp_path / "absent"))
+    source = hand_result(seed=5, n_ops=7) if kind == "curve" else surface_result()
+    source.save(tmp_path / "out")
+    applied, limits = [], []
+    for cls in {type(op) for op in source.genome}:
+        real_apply = cls.apply
+        monkeypatch.setattr(cls, "apply", lambda self, state, real=real_apply: applied.append(self) or real(self, state))
+    real_limit = model.limit_mesh
+    monkeypatch.setattr(model, "limit_mesh", lambda *a: limits.append(a) or real_limit(*a))
+    assert all(isinstance(op, Op) for op in source.genome)
+    result = Result.load(tmp_path / "out")
+    names = [n for n in format_names(kind) if n != "step"] + ["step"]
+    written = export(result, tmp_path / "out", names)
+    assert len(written) >= len(names)
+    assert len(applied) == len(source.genome) and len(limits) == (kind == "surface")
+    checks = validate(tmp_path / "out")
+    assert checks and not [c for c in checks if c.passed is False]
+    assert len(applied) == 2 * len(source.genome) and len(limits) == 2 * (kind == "surface")

@@ -13,6 +13,9 @@ run) when it is a symlink, when the manifest does not list it ("not written by g
 format, when it differs from the script regenerated from ``result.json`` ("modified"); data files
 (STEP, DXF, SVG) are read, never run, and also get a check of their SHA-256 against the manifest. Files no
 exporter claims are ignored.
+
+:func:`save_document` saves a host's own document (``.FCStd``, ``.blend``) by running the exported script
+in the installed host.
 """
 
 from __future__ import annotations
@@ -177,6 +180,21 @@ def export(result: Any, out_dir: str | os.PathLike[str], formats: Sequence[str] 
         raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def save_document(result: Any, path: str | os.PathLike[str]) -> Path:
+    """Save ``result`` as a host document (``.FCStd`` through FreeCAD, ``.blend`` through Blender, chosen by
+    the suffix): the exporter that declares that ``document_suffix`` runs its script in the host. InputError
+    for a suffix no exporter saves; ExportError when the host is missing or fails."""
+    target = Path(path)
+    for fmt in registry().values():
+        exporter = fmt.exporter
+        suffix = getattr(exporter, "document_suffix", None)
+        if exporter is not None and suffix and target.suffix.lower() == suffix.lower() and fmt.supports(result.kind):
+            return exporter.save_document(result, target)
+    known = sorted(getattr(f.exporter, "document_suffix", "") for f in registry().values() if f.exporter)
+    raise InputError(f"{target.name}: no exporter saves {target.suffix or 'suffix-less'} documents "
+                     f"(known: {', '.join(s for s in known if s)})")
 
 
 def _refusal(path: Path, result: Any, fmt: Format, entry: dict[str, str] | None) -> tuple[str | None, bool]:
