@@ -71,9 +71,9 @@ def mesh_script(genome: Sequence[Op], states: Sequence[PolyMesh], levels: int, u
     labels = surface_labels(genome)
     return fill_python("blender_mesh.py", {
         "name": name or "gsr_control_mesh", "levels": int(levels), "use_limit_surface": bool(use_limit_surface),
-        "boundary": _BOUNDARY[boundary],
+        "boundary": _BOUNDARY[boundary], "template_label": _blender_name(labels[0]),
         "template_vertices": template.vertices.tolist(), "template_faces": [list(f) for f in template.faces],
-        "steps": [{"label": label, "op": _op_params(op, state)}
+        "steps": [{"label": _blender_name(label), "op": _op_params(op, state)}
                   for label, op, state in zip(labels[1:], genome, states)],
     })
 

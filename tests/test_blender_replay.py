@@ -166,14 +166,19 @@ def test_modifier_matches_catmull_clark(replayed):
 
 @pytest.mark.blender
 @pytest.mark.xdist_group("blender")  # one Blender run under --dist loadgroup
-def test_scripts_leave_one_object_with_the_modifier_settings_asked_for(replayed):
+def test_scripts_leave_one_modified_object_and_one_hidden_object_per_step(replayed):
     cases, results, _ = replayed
     for case, result in zip(cases, results):
-        (obj,) = result["objects"]
+        shown = [o for o in result["objects"] if not o["hidden"]]
+        steps = [o for o in result["objects"] if o["hidden"]]
+        (obj,) = shown
         assert (obj["vertices"], obj["faces"]) == (case["mesh"].n_vertices, case["mesh"].n_faces)
         assert obj["in_scene"]
         assert obj["modifiers"] == [{"type": "SUBSURF", "levels": case["levels"], "render_levels": case["levels"],
                                      "use_limit_surface": case["limit"], "boundary_smooth": "ALL"}]
+        assert len(steps) == len(case["ops"]) + 1 and not any(o["modifiers"] for o in steps)
+        assert all(o["collections"] == [f"{obj['name']} history"] for o in steps)
+        assert (steps[-1]["vertices"], steps[-1]["faces"]) == (obj["vertices"], obj["faces"])
 
 
 @pytest.mark.blender
@@ -182,7 +187,7 @@ def test_script_without_arguments_just_builds_the_object(replayed):
     cases, results, _ = replayed
     gui = results[-1]
     assert gui["error"] is None
-    (obj,) = gui["objects"]
+    (obj,) = [o for o in gui["objects"] if not o["hidden"]]
     assert obj["name"] == "gui" and obj["in_scene"]
     assert (obj["vertices"], obj["faces"]) == (cases[0]["mesh"].n_vertices, cases[0]["mesh"].n_faces)
     assert obj["modifiers"][0]["levels"] == 3 and obj["modifiers"][0]["use_limit_surface"] is False

@@ -4,7 +4,9 @@ Written by gsr_cad's "blender" exporter; everything specific to this model is in
 then one step per op (its label and its parameters, as in result.json). V[i] is the BMVert gsr_cad calls
 vertex i and F[f] gsr_cad's corner cycle of face f; every op helper runs Blender's bmesh operator and then
 renumbers them the way gsr_cad does, so later ops find their elements through them, never through
-Blender's indices. Edit an op in DATA["steps"] and run the script again.
+Blender's indices. The control mesh after every step is kept as a hidden object named after the step (in
+the collection "<name> history"); the visible object carries the Subdivision Surface modifier. Edit an op
+in DATA["steps"] and run the script again.
 
 Run it in Blender's Text Editor to build the object, or headless:
     blender -b --factory-startup --python this_file.py -- [--control c.obj] [--evaluated e.obj] [--blend out.blend]
@@ -243,17 +245,33 @@ OPS = {"translate_vertex": translate_vertex, "translate_face": translate_face, "
        "inset": inset, "edge_loop": edge_loop, "bevel": bevel}
 
 
+def snapshot(bm, label, collection):
+    """A hidden mesh object holding the control mesh as it is now (one per step of the history)."""
+    mesh = bpy.data.meshes.new(label)
+    bm.to_mesh(mesh)
+    obj = bpy.data.objects.new(label, mesh)
+    collection.objects.link(obj)
+    obj.hide_set(True)
+    obj.hide_render = True
+    return obj
+
+
 def build():
-    """Template, then the modelling history; returns (bm, V, F)."""
+    """Template, then the modelling history (a hidden object per step in the collection "<name> history");
+    returns (bm, V, F)."""
+    history = bpy.data.collections.new(DATA["name"] + " history")
+    bpy.context.scene.collection.children.link(history)
     bm = bmesh.new()
     V = [bm.verts.new(p) for p in DATA["template_vertices"]]
     F = [tuple(cycle) for cycle in DATA["template_faces"]]
     for cycle in F:
         bm.faces.new([V[i] for i in cycle])
     check(bm, V, F)
+    snapshot(bm, DATA["template_label"], history)
     for step in DATA["steps"]:
         op = dict(step["op"])
         OPS[op.pop("op")](bm, V, F, **op)
+        snapshot(bm, step["label"], history)
     return bm, V, F
 
 
