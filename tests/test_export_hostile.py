@@ -220,8 +220,9 @@ def test_scad_comments_and_values_cannot_escape():
 
 # --- the real hosts run no payload ----------------------------------------------------------------------
 
-def _hostile_curve_scripts(tmp_path: Path, marker: Path) -> dict[str, Path]:
-    """The curve scripts of a clean result with every label, name and string in DATA replaced by payloads."""
+def _hostile_scripts(tmp_path: Path, marker: Path) -> dict[str, Path]:
+    """Scripts of clean results (Blender and FreeCAD: a curve, CadQuery: a surface) with every label, name and
+    string in their DATA replaced by payloads."""
     result = hand_result(seed=33, n_ops=4)
     texts = {}
     pay = payloads(marker)
@@ -236,6 +237,10 @@ def _hostile_curve_scripts(tmp_path: Path, marker: Path) -> dict[str, Path]:
     for i, step in enumerate(data["steps"]):
         step["label"] = pay[-1 - i % len(pay)]
     texts["freecad"] = fill_python("freecad_macro.py", data)
+    (script,) = CadqueryExporter().render(surface_result(), "clean").values()
+    data = data_of(script)
+    data["statement"] = "\n".join(pay)
+    texts["cadquery"] = fill_python("cadquery_script.py", data)
     out = {}
     for host, text in texts.items():
         path = tmp_path / f"{host}_hostile.py"
@@ -248,7 +253,7 @@ def _hostile_curve_scripts(tmp_path: Path, marker: Path) -> dict[str, Path]:
 @pytest.mark.freecad
 def test_hosts_run_the_hostile_scripts_without_running_the_payload(tmp_path):
     marker = tmp_path / "MARK"
-    scripts = _hostile_curve_scripts(tmp_path, marker)
+    scripts = _hostile_scripts(tmp_path, marker)
     ran = 0
     if hosts.find_host("blender"):
         out = tmp_path / "built.json"
@@ -260,11 +265,16 @@ def test_hosts_run_the_hostile_scripts_without_running_the_payload(tmp_path):
         proc = hosts.run_freecad(scripts["freecad"], [tmp_path / "hostile.FCStd"], timeout=300)
         assert '"steps": 5' in proc.stdout
         ran += 1
+    if hosts.cadquery_python():
+        step = tmp_path / "hostile.step"
+        hosts.run_cadquery(scripts["cadquery"], [step], timeout=300)
+        assert step.stat().st_size > 0
+        ran += 1
     proc = subprocess.run([sys.executable, "-c", "import ast,sys; ast.parse(open(sys.argv[1]).read())",
                            scripts["blender"]], capture_output=True, timeout=60)
     assert proc.returncode == 0
     if not ran:
-        pytest.skip("neither Blender nor FreeCAD is installed")
+        pytest.skip("none of Blender, FreeCAD and CadQuery is installed")
     assert not marker.exists()
 
 

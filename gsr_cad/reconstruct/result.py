@@ -80,7 +80,7 @@ def plain(value: Any, what: str, depth: int = 0) -> Any:
         return value
     if _is_int(value):
         if abs(value) >= MAX_INT:
-            raise _fail(what, f"be an integer of magnitude below 2**63", value)
+            raise _fail(what, "be an integer of magnitude below 2**63", value)
         return value
     if isinstance(value, float):
         if not (math.isfinite(value) and abs(value) <= MAX_NUMBER):
