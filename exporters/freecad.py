@@ -5,8 +5,10 @@ The macro is :mod:`~gsr_cad.exporters.hostside` ``freecad_macro.py`` with its
 control polygon after each op, labelled like ``"03 add point 2 at (0.41, 0.77)"``; all hidden but the last)
 in a ``History`` group as a parametric chain of FeaturePython objects whose op parameters can be edited in
 FreeCAD (a recompute replays the later ops and rebuilds the curve), and the final curve as an exact
-B-spline from poles, knots, multiplicities and degree. Surfaces: the control mesh after every step, the limit surface as sewn B-spline
-patches and the limit mesh. The macro runs in ``freecadcmd`` and from the GUI's macro menu; it saves an
+B-spline from poles, knots, multiplicities and degree. Surfaces: the same parametric chain on the
+connectivity gsr_cad found (each op's numbers editable; the macro carries its own copy of the op geometry
+and the limit stencil, so a recompute rebuilds the later control meshes and the limit mesh), plus the limit
+surface as the exported, sewn B-spline patches. The macro runs in ``freecadcmd`` and from the GUI's macro menu; it saves an
 ``.FCStd`` when given a path (``build(path)``, the first entry of ``GSR_ARGS`` as ``hosts.run_freecad``
 passes it, or ``GSR_FCSTD``); it prints a JSON summary on success, and under ``freecadcmd`` turns any
 error into exit code 1 (FreeCAD itself would exit 0).
@@ -29,6 +31,9 @@ from scipy.spatial import cKDTree
 
 from gsr_cad.errors import ExportError
 from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.subdivision import get_catmull_clark
+from gsr_cad.ops import mesh_kernel
+from gsr_cad.ops.mesh_conn import mesh_view
 
 from . import hosts
 from .base import EXACT_TOL, SAMPLE_TOL, Check, Exporter, curve_checks, expect_equal, failed, measured, \
@@ -41,6 +46,32 @@ from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_mod
 SAMPLES_PER_SPAN = 16
 MESH_TOL = 1e-6
 """FreeCAD's Mesh module stores single precision: the limit mesh comes back within this much of the diagonal."""
+
+
+def _rows(matrix: Any) -> list[list[list[float]]]:
+    """A sparse matrix as ``[[column indices], [weights]]`` per row (the limit stencil of the control mesh)."""
+    m = matrix.tocsr()
+    return [[m.indices[m.indptr[i]:m.indptr[i + 1]].tolist(), m.data[m.indptr[i]:m.indptr[i + 1]].tolist()]
+            for i in range(m.shape[0])]
+
+
+def _recipe(op: Any, state: PolyMesh) -> dict[str, Any]:
+    """How the op places its vertices on ``state``, for the macro's own replay of the history: the element
+    indices it uses, resolved once (the connectivity is fixed; the op's numbers stay editable)."""
+    conn = mesh_view(state).conn
+    if op.name in ("translate_face", "extrude", "inset"):
+        return {"cycle": list(state.faces[op.face])}
+    if op.name == "edge_loop":
+        return {"ring": [list(conn.edges[e]) for e in mesh_kernel.edge_ring(conn, op.edge)[0]]}
+    if op.name == "bevel":
+        a, b = conn.edges[op.edge]
+        f1, f2 = conn.edge_faces(op.edge)
+        ends = []
+        for v, w, start in ((a, b, f1), (b, a, f2)):
+            fan = mesh_kernel._fan(conn, v, start, "bevel")
+            ends.append([[fan[j][1], j in (0, len(fan) - 2)] for j in range(len(fan) - 1)])
+        return {"a": a, "b": b, "ends": ends}
+    return {}
 
 
 def _doc_name(stem: str) -> str:
@@ -141,8 +172,10 @@ class FreecadMacroExporter(Exporter):
             "kind": "surface", "doc_name": _doc_name(stem), "levels": int(model.levels), "sew_tolerance": float(sew_tol),
             "patch_deviation": float(patch_set.max_deviation),
             "steps": [{"label": label, "op": op, "vertices": state.vertices.tolist(),
-                       "faces": [list(f) for f in state.faces]}
-                      for label, op, state in zip(model.labels, model.ops, model.states)],
+                       "faces": [list(f) for f in state.faces],
+                       "recipe": None if op is None else _recipe(model.genome[i - 1], model.states[i - 1])}
+                      for i, (label, op, state) in enumerate(zip(model.labels, model.ops, model.states))],
+            "limit_rows": _rows(get_catmull_clark(model.control, model.levels, model.boundary).limit_matrix),
             "limit_points": model.limit.vertices.tolist(),
             "limit_triangles": [list(t) for t in triangle_faces(model.limit)],
             "patches": [patch_data(p) for p in patch_set.patches]})
