@@ -1,17 +1,17 @@
 """FreeCAD macro export (format "fcmacro"): a self-contained ``*.FCMacro`` rebuilding the modelling history.
 
 The macro is :mod:`~gsr_cad.exporters.hostside` ``freecad_macro.py`` with its
-``DATA`` line filled by the literal encoder. Curves: one ``Part::Polygon`` per step (the template, then the
-control polygon after each op, labelled like ``"03 add point 2 at (0.41, 0.77)"``; all hidden but the last)
-in a ``History`` group as a parametric chain of FeaturePython objects whose op parameters can be edited in
-FreeCAD (a recompute replays the later ops and rebuilds the curve), and the final curve as an exact
-B-spline from poles, knots, multiplicities and degree. Surfaces: the same parametric chain on the
+``DATA`` line filled by the literal encoder. Curves: one FeaturePython object per step (the template, then
+the control polygon after each op, labelled like ``"03 add point 2 at (0.41, 0.77)"``; all hidden but the
+last) in a ``History`` group, a parametric chain whose op parameters can be edited in FreeCAD (a recompute
+replays the later ops and rebuilds the curve), and the curve as an exact B-spline on the last step's poles
+with clamped uniform knots. Surfaces: the same parametric chain on the
 connectivity gsr_cad found (each op's numbers editable; the macro carries its own copy of the op geometry
 and the limit stencil, so a recompute rebuilds the later control meshes and the limit mesh), plus the limit
-surface as the exported, sewn B-spline patches. The macro runs in ``freecadcmd`` and from the GUI's macro menu; it saves an
-``.FCStd`` when given a path (``build(path)``, the first entry of ``GSR_ARGS`` as ``hosts.run_freecad``
-passes it, or ``GSR_FCSTD``); it prints a JSON summary on success, and under ``freecadcmd`` turns any
-error into exit code 1 (FreeCAD itself would exit 0).
+surface as the exported, sewn B-spline patches. The macro runs in ``freecadcmd`` and from the GUI's macro
+menu; it saves an ``.FCStd`` when given a path (``build(path)``, the first entry of ``GSR_ARGS`` as
+``hosts.run_freecad`` passes it, or ``GSR_FCSTD``); it prints a JSON summary on success, and under
+``freecadcmd`` turns any error into exit code 1 (FreeCAD itself would exit 0).
 
 Validation runs the macro with ``freecadcmd`` to save a document, opens that document in a second
 ``freecadcmd`` run (:func:`~gsr_cad.exporters.checks.freecad_read`), and compares every step and the curve
@@ -169,7 +169,8 @@ class FreecadMacroExporter(Exporter):
         patch_set = model.patches
         sew_tol = max(2.0 * patch_set.max_deviation, 1e-7 * model.diagonal)
         text = fill_python("freecad_macro.py", {
-            "kind": "surface", "doc_name": _doc_name(stem), "levels": int(model.levels), "sew_tolerance": float(sew_tol),
+            "kind": "surface", "doc_name": _doc_name(stem), "levels": int(model.levels),
+            "sew_tolerance": float(sew_tol),
             "patch_deviation": float(patch_set.max_deviation),
             "steps": [{"label": label, "op": op, "vertices": state.vertices.tolist(),
                        "faces": [list(f) for f in state.faces],

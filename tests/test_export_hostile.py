@@ -338,10 +338,14 @@ def test_validate_refuses_hand_placed_modified_and_symlinked_scripts(exported_di
 def test_a_new_export_clears_the_previous_runs_files_only(exported_dir):
     result, out = exported_dir
     (out / "notes.txt").write_text("mine")
+    manifest = json.loads((out / MANIFEST).read_text())
+    manifest["files"]["result.json"] = {"format": "svg", "stem": "curve", "sha256": "0" * 64}  # a tampered list
+    (out / MANIFEST).write_text(json.dumps(manifest))
     before = json.loads((out / MANIFEST).read_text())["files"]
-    assert set(before) == {"curve.scad", "curve_blender.py", "curve.FCMacro", "curve.svg"}
+    assert set(before) == {"curve.scad", "curve_blender.py", "curve.FCMacro", "curve.svg", "result.json"}
     written = export(result, out, ["svg"], stem="again")
     assert [p.name for p in written] == ["again.svg"]
     assert sorted(p.name for p in out.iterdir()) == sorted([MANIFEST, "again.svg", "notes.txt", "result.json"])
+    (out / "again.svg").write_text("edited by hand")  # changed since gsr wrote it: kept
     export(result, out, [])
-    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["again.svg", "notes.txt", "result.json"]

@@ -129,4 +129,5 @@ def test_replay_saves_the_host_documents(gsr, tmp_path):
     names = json.loads(line[len("OBJECTS "):])
     assert "curve" in names and len(names) == len(result.genome) + 2  # the steps and the NURBS curve, no cube
     bad = gsr("replay", tmp_path / "in", "-o", tmp_path / "out2", "--fcstd", tmp_path / "x.step")
-    assert bad.code == 2 and "--fcstd needs a file name ending in .fcstd" in bad.err and not (tmp_path / "out2").exists()
+    assert bad.code == 2 and "--fcstd needs a file name ending in .fcstd" in bad.err
+    assert not (tmp_path / "out2").exists()

@@ -171,7 +171,8 @@ def test_one_replay_and_one_limit_mesh_per_export_run_and_per_validation(kind, t
     applied, limits = [], []
     for cls in {type(op) for op in source.genome}:
         real_apply = cls.apply
-        monkeypatch.setattr(cls, "apply", lambda self, state, real=real_apply: applied.append(self) or real(self, state))
+        monkeypatch.setattr(cls, "apply",
+                            lambda self, state, real=real_apply: applied.append(self) or real(self, state))
     real_limit = model.limit_mesh
     monkeypatch.setattr(model, "limit_mesh", lambda *a: limits.append(a) or real_limit(*a))
     assert all(isinstance(op, Op) for op in source.genome)

@@ -231,7 +231,8 @@ def test_blender_curve_script_rebuilds_history_and_nurbs(tmp_path, scheme):
     assert any(k.endswith("evaluated points") and v == "pass" for k, v in got.items())
     text = path.read_text(encoding="utf-8")
     op = result.genome[-1].to_json()
-    record = "{'op': %r, 'index': %d, %r: [" % (op["op"], op["index"], "position" if op["op"] == "add_point" else "delta")
+    field = "position" if op["op"] == "add_point" else "delta"
+    record = "{'op': %r, 'index': %d, %r: [" % (op["op"], op["index"], field)
     assert f"'{len(result.genome):02d} " in text and record in text
     edited = tmp_path / "edited_blender.py"
     edited.write_text(text.replace(record, record + "0.25 + "), encoding="utf-8")

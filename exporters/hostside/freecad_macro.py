@@ -231,9 +231,12 @@ def replay_bevel(P, recipe, edge, offset):
     P += at_a[1:] + at_b[1:]
 
 
-PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"}, "translate_face": {"distance": "App::PropertyFloat"},
+# the editable numbers of each op and their property types (element indices are read-only integers)
+PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"},
+              "translate_face": {"distance": "App::PropertyFloat"},
               "scale": {"factor": "App::PropertyFloat"}, "extrude": {"distance": "App::PropertyFloat"},
-              "inset": {"thickness": "App::PropertyFloat"}, "edge_loop": {}, "bevel": {"offset": "App::PropertyFloat"}}
+              "inset": {"thickness": "App::PropertyFloat"}, "edge_loop": {},
+              "bevel": {"offset": "App::PropertyFloat"}}
 
 
 class MeshStep:

@@ -6,7 +6,8 @@ installed distribution) and loaded on first use; nothing here imports them, so t
 :func:`export` writes every requested format or none: files are produced in a staging directory inside
 the output directory and moved into place only after every exporter has succeeded. It records what it
 wrote in a manifest (:data:`MANIFEST`, one entry per file: format, stem, SHA-256) and first removes the
-files the previous run's manifest lists, and only those, so stale exports never linger.
+files the previous run's manifest lists, and only those that still hold what gsr wrote, so stale exports
+never linger and nothing else is touched.
 
 :func:`validate` checks only what gsr wrote: a file an exporter claims is refused (a failed check, never
 run) when it is a symlink, when the manifest does not list it ("not written by gsr"), or, for a script
@@ -133,13 +134,13 @@ def read_manifest(out_dir: str | os.PathLike[str]) -> dict[str, dict[str, str]]:
 
 
 def clear_exports(out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Remove the files the previous run's manifest lists (a symlink is removed, never its target) and the
-    manifest; returns the removed paths."""
+    """Remove the files the previous run's manifest lists that still hold what gsr wrote (same SHA-256; a file
+    changed since is kept) and the manifest; returns the removed paths. Symlinks are never followed."""
     out = Path(out_dir)
     removed = []
-    for name in read_manifest(out):
+    for name, entry in read_manifest(out).items():
         path = out / name
-        if path.is_symlink() or path.is_file():
+        if not path.is_symlink() and path.is_file() and _sha256(path) == entry["sha256"]:
             path.unlink()
             removed.append(path)
     (out / MANIFEST).unlink(missing_ok=True)
