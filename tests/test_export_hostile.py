@@ -349,3 +349,16 @@ def test_a_new_export_clears_the_previous_runs_files_only(exported_dir):
     (out / "again.svg").write_text("edited by hand")  # changed since gsr wrote it: kept
     export(result, out, [])
     assert sorted(p.name for p in out.iterdir()) == ["again.svg", "notes.txt", "result.json"]
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e11])
+def test_extreme_but_valid_magnitudes_give_the_clean_scripts(scale):
+    clean, extreme = hand_result(seed=36, n_ops=5), hand_result(seed=36, n_ops=5, scale=scale, offset=(-scale, scale))
+    for exporter in (*SCRIPT_EXPORTERS, OpenscadExporter()):
+        (want,) = exporter.render(clean, "curve").values()
+        (text,) = exporter.render(extreme, "curve").values()
+        if exporter.name == "scad":
+            assert text.count("\n") == want.count("\n") and "nan" not in text and "inf" not in text
+        else:
+            assert statements(text) == statements(want)
+            assert data_of(text).keys() == data_of(want).keys()
