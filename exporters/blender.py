@@ -35,11 +35,13 @@ from . import hosts
 from .base import (EXACT_TOL, SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
                    save_host_document, scratch_dir, skipped)
 from .encode import fill_python
-from .model import CurveModel, curve_model, read_obj, same_mesh, surface_labels, surface_model
+from .model import CurveModel, curve_model, read_obj, require_ops, same_mesh, surface_labels, surface_model
 
 MAX_LEVELS = 6
 _BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
 CURVE_RESOLUTION = 12
+SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel")
+"""The surface ops the Blender mesh script replays."""
 BLENDER_NAME_LIMIT = 63  # bytes in an ID name
 CONTROL_TOL = 1e-6
 """Control geometry read back from Blender (single precision), relative to the diagonal."""
@@ -67,6 +69,7 @@ def _op_params(op: Op, state: PolyMesh) -> dict[str, Any]:
 def mesh_script(genome: Sequence[Op], states: Sequence[PolyMesh], levels: int, use_limit_surface: bool,
                 name: str, boundary: str = "all") -> str:
     """The surface script text; ``states`` are the template and the mesh after every op of ``genome``."""
+    require_ops(genome, SURFACE_OPS, "Blender mesh script")
     template = states[0]
     labels = surface_labels(genome)
     return fill_python("blender_mesh.py", {
@@ -103,9 +106,14 @@ def write_blender_script(genome: Sequence[Op], template: PolyMesh, path: str | o
     return write_text(path, mesh_script(genome, states, levels, use_limit_surface, title, boundary))
 
 
+CURVE_OPS = ("add_point", "move_point")
+"""The curve ops the Blender curve script replays."""
+
+
 def curve_script(model: CurveModel, name: str) -> str:
     """The curve script text (history replay + NURBS curve)."""
     history = model.history
+    require_ops(model.genome, CURVE_OPS, "Blender curve script")
     return fill_python("blender_curve.py", {
         "name": name or "gsr_curve", "degree": int(model.spline.degree), "resolution": CURVE_RESOLUTION,
         "template": history[0].points.tolist(),

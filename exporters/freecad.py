@@ -40,10 +40,12 @@ from .base import EXACT_TOL, SAMPLE_TOL, Check, Exporter, curve_checks, expect_e
     point_deviation, save_host_document, scratch_dir, skipped
 from .checks import PATCH_GRID, freecad_read
 from .encode import fill_python
-from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_model, patch_data, same_mesh, \
-    surface_model, triangle_faces
+from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_model, patch_data, require_ops, \
+    same_mesh, surface_model, triangle_faces
 
 SAMPLES_PER_SPAN = 16
+SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel")
+"""The surface ops the macro's own replay knows (hostside/freecad_macro.py, ``PARAMETERS``)."""
 MESH_TOL = 1e-6
 """FreeCAD's Mesh module stores single precision: the limit mesh comes back within this much of the diagonal."""
 
@@ -89,6 +91,7 @@ class FreecadMacroExporter(Exporter):
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         model = curve_model(result)
+        require_ops(result.genome, ("add_point", "move_point"), "FreeCAD macro")
         spline = model.spline
         text = fill_python("freecad_macro.py", {
             "kind": "curve", "doc_name": _doc_name(stem), "scheme": result.scheme, "degree": int(spline.degree),
@@ -166,6 +169,7 @@ class FreecadMacroExporter(Exporter):
 
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         model = surface_model(result)
+        require_ops(model.genome, SURFACE_OPS, "FreeCAD macro")
         patch_set = model.patches
         sew_tol = max(2.0 * patch_set.max_deviation, 1e-7 * model.diagonal)
         text = fill_python("freecad_macro.py", {

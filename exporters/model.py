@@ -119,6 +119,14 @@ def op_label(number: int, op: dict[str, Any] | None, width: int = 2) -> str:
     return f"{head} {name.replace('_', ' ')} {fields}".rstrip()
 
 
+def require_ops(genome: Sequence[Any], known: Sequence[str], writer: str) -> None:
+    """ExportError when ``genome`` (ops) holds an op kind the host script of ``writer`` cannot replay (a kind
+    added to gsr_cad.ops after that script was written)."""
+    unknown = sorted({op.name for op in genome} - set(known))
+    if unknown:
+        raise ExportError(f"the {writer} replays {', '.join(known)}, not {', '.join(unknown)}")
+
+
 def _replayed(result: Any) -> tuple:
     if not result.states:
         raise ExportError("the result has no config.template: the modelling history cannot be replayed")
@@ -136,10 +144,11 @@ def curve_history(result: Any) -> list[HistoryStep]:
 
 @dataclasses.dataclass(frozen=True)
 class CurveModel:
-    """A curve result for the exporters: its B-spline and its labelled history."""
+    """A curve result for the exporters: its B-spline, its labelled history and its genome."""
 
     spline: CurveSpline
     history: tuple[HistoryStep, ...]
+    genome: tuple = ()
 
 
 def curve_model(result: Any) -> CurveModel:
@@ -147,7 +156,7 @@ def curve_model(result: Any) -> CurveModel:
     cached = result.__dict__.get(_CACHE)
     if isinstance(cached, CurveModel):
         return cached
-    model = CurveModel(curve_spline(result), tuple(curve_history(result)))
+    model = CurveModel(curve_spline(result), tuple(curve_history(result)), tuple(result.genome))
     result.__dict__[_CACHE] = model
     return model
 

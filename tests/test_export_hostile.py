@@ -362,3 +362,37 @@ def test_extreme_but_valid_magnitudes_give_the_clean_scripts(scale):
         else:
             assert statements(text) == statements(want)
             assert data_of(text).keys() == data_of(want).keys()
+
+
+def test_an_op_kind_added_later_parses_and_the_scripts_refuse_it_clearly(monkeypatch):
+    """New op kinds (corners, creases, holes...) flow through result.json by the op registry; a host script
+    that does not know one says so instead of writing a script that fails in the host."""
+    import dataclasses
+
+    from gsr_cad.ops import base as ops_base
+    from gsr_cad.ops import curve as curve_ops
+
+    @dataclasses.dataclass(frozen=True)
+    class Nudge(ops_base.Op):  # a curve op kind the exporters were not written for
+        index: int
+        amount: float
+
+        def apply(self, state):
+            pts = state.points.copy()
+            pts[self.index, 1] += self.amount
+            return curve_ops.Polygon(pts, state.lo, state.hi)
+
+    Nudge.name = "test_nudge"
+    monkeypatch.setitem(ops_base.REGISTRY, "test_nudge", Nudge)
+    doc = _clean_document()
+    doc["genome"].append({"op": "test_nudge", "index": 1, "amount": 0.01})
+    result = Result.from_json(doc)
+    assert result.genome[-1] == Nudge(1, 0.01) and result.states[-1].points[1, 1] == \
+        pytest.approx(result.states[-2].points[1, 1] + 0.01)
+    with pytest.raises(InputError, match="amount must be a finite number"):
+        Result.from_json(_set(doc, "genome", [{"op": "test_nudge", "index": 1, "amount": "x"}]))
+    for exporter in (BlenderExporter(), FreecadMacroExporter()):
+        with pytest.raises(ExportError, match="replays add_point, move_point, not test_nudge"):
+            exporter.render(result, "curve")
+    (scad,) = OpenscadExporter().render(result, "curve").values()  # formats of the geometry need no op kinds
+    assert "gsr_control_points" in scad
