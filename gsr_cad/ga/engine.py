@@ -86,15 +86,22 @@ class _CostFn:
         self.problem = problem
         self.sink = sink
         self.owner = os.getpid()
+        self.should_stop: Callable[[], bool] | None = None
+
+    def stopping(self) -> bool:
+        """Whether the run was asked to stop (polled by in-process evaluators between items)."""
+        return self.should_stop is not None and os.getpid() == self.owner and bool(self.should_stop())
 
     def __call__(self, genome: GenomeT) -> float:
+        if self.stopping():
+            raise KeyboardInterrupt
         c = _clean_cost(self.problem.cost(genome))
         if self.sink is not None and os.getpid() == self.owner:
             self.sink[genome] = c
         return c
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"problem": self.problem, "sink": None, "owner": self.owner}
+        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None}
 
 
 class GeneticAlgorithm:
@@ -154,16 +161,28 @@ class GeneticAlgorithm:
         """Overall progress in [0, 1]; never decreases."""
         return self._progress
 
-    def run(self, on_generation: Callable[[GenerationReport], None] | None = None) -> RunResult:
+    def run(self, on_generation: Callable[[GenerationReport], None] | None = None,
+            should_stop: Callable[[], bool] | None = None,
+            checkpoint: str | os.PathLike[str] | None = None) -> RunResult:
         """Evolve until a stopping criterion holds or Ctrl-C; call ``on_generation`` after each generation.
 
-        Ctrl-C returns the best genome so far with ``interrupted=True``; costs of an unfinished batch count
-        when computed in this process (an out-of-process evaluator loses them). A second call continues the
-        same run (after an interrupt, or after :meth:`resume` with a longer config); a finished run returns
-        at once.
+        Ctrl-C, or ``should_stop()`` turning true (polled before every in-process evaluation and between
+        generations), returns the best genome so far with ``interrupted=True``; costs of an unfinished
+        batch count when computed in this process (an out-of-process evaluator loses them). With
+        ``checkpoint``, the state after every completed generation is saved there (atomically), so that
+        :meth:`resume` continues exactly. A second call continues the same run (after an interrupt, or after
+        :meth:`resume` with a longer config); a finished run returns at once.
         """
         self._clock = time.perf_counter()
+        self._cost_fn.should_stop = should_stop
         interrupted = False
+        if checkpoint is not None:
+            inner = on_generation
+
+            def on_generation(report: GenerationReport) -> None:
+                self.checkpoint(checkpoint)
+                if inner is not None:
+                    inner(report)
         try:
             if self.generation < 0:
                 self._first_generation()
@@ -171,6 +190,8 @@ class GeneticAlgorithm:
             else:
                 self._stop = termination.stop_reason(self.config, self._state())
             while self._stop is None:
+                if self._cost_fn.stopping():
+                    raise KeyboardInterrupt
                 self._next_generation()
                 self._finish_generation(on_generation)
         except KeyboardInterrupt:
@@ -179,6 +200,7 @@ class GeneticAlgorithm:
         finally:
             self._seconds = self._elapsed()
             self._clock = None
+            self._cost_fn.should_stop = None
         best_genome, best_cost = self.best
         return RunResult(best_genome=best_genome, best_cost=best_cost, history=list(self.history),
                          generations=max(self.generation, 0), evaluations=self.evaluations,
