@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import json
+import math
 import os
+import shutil
 import tempfile
 import types
 import typing
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -15,10 +20,33 @@ import numpy as np
 
 from ..atomic import write_text
 from ..errors import ExportError, InputError
+from . import signals
+from .progress import ga_progress
+
+
+OUTPUT_NAMES = ("result.json", "control_points.csv", "control_mesh.obj", "limit_mesh.obj", "report.png")
+"""Files a run writes into OUT (each must be free to be replaced by a file)."""
+STAGING_PREFIXES = (".gsr-export-", ".gsr-write-test")
 
 
 def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
+
+
+def whole_number(text: str) -> int:
+    """argparse type: an integer, also written as an integral float (``1e8``), so that range checks can
+    state the allowed range instead of a bare "invalid int"."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not (math.isfinite(value) and value.is_integer()):
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}")
+    return int(value)
 
 
 def add_config_flags(parser: argparse.ArgumentParser, config_cls: type, skip: tuple[str, ...] = ()) -> None:
@@ -38,9 +66,9 @@ def add_config_flags(parser: argparse.ArgumentParser, config_cls: type, skip: tu
             kwargs["choices"] = list(args)
         elif origin in (typing.Union, types.UnionType):
             inner = next(a for a in args if a is not type(None))
-            kwargs["type"] = inner
+            kwargs["type"] = whole_number if inner is int else inner
         else:
-            kwargs["type"] = hint
+            kwargs["type"] = whole_number if hint is int else hint
         kwargs["help"] = f"default {field.default!r}"
         group.add_argument(_flag(field.name), **kwargs)
 
@@ -61,11 +89,29 @@ def write_control_points(path: Path, points: np.ndarray) -> Path:
     return write_text(path, "x,y\n" + rows)
 
 
-def prepare_out_dir(path: str) -> Path:
-    """Create the output directory (before the long run) and prove it is writable."""
+def clean_stale(out: Path) -> None:
+    """Remove what an earlier run killed mid-way left in ``out``: export staging folders and the temporary
+    files of atomic writes (``.NAME.*.tmp``)."""
+    with contextlib.suppress(OSError):
+        for entry in out.iterdir():
+            name = entry.name
+            if name.startswith(STAGING_PREFIXES) and entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            elif name.startswith(".") and name.endswith(".tmp") and entry.is_file():
+                entry.unlink()
+
+
+def prepare_out_dir(path: str, names: tuple[str, ...] = OUTPUT_NAMES) -> Path:
+    """Create the output directory (before the long run), prove it is writable, check that none of the
+    ``names`` to be written is a directory, and clean what a killed earlier run left behind."""
+    if path == "":
+        raise InputError("empty output directory name (give -o DIR)")
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a directory")
+    for name in names:
+        if (out / name).is_dir():
+            raise InputError(f"{out / name}: is a directory; it must be free for the output file")
     try:
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=out, prefix=".gsr-write-test"):
@@ -74,15 +120,35 @@ def prepare_out_dir(path: str) -> Path:
         raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
     if not os.access(out, os.W_OK):
         raise ExportError(f"cannot write to {out}: permission denied")
+    clean_stale(out)
     return out
+
+
+@contextlib.contextmanager
+def output_dir(path: str, names: tuple[str, ...] = OUTPUT_NAMES) -> Iterator[Path]:
+    """:func:`prepare_out_dir`, and if the block fails before writing anything, remove the directory again
+    when this call created it (an interrupted or failed run leaves OUT untouched)."""
+    existed = Path(path).exists() if path else False
+    out = prepare_out_dir(path, names)
+    try:
+        yield out
+    except BaseException:
+        if not existed:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if still empty
+        raise
 
 
 def plots_module() -> types.ModuleType:
     """:mod:`gsr_cad.plots` (imported on demand: it loads matplotlib), or ExportError if that is broken."""
     try:
+        import matplotlib
+
         from .. import plots
     except ImportError as exc:  # matplotlib is a core dependency; say so if it is broken
         raise ExportError(f"cannot draw report.png: {exc}") from None
+    matplotlib.rcParams["text.usetex"] = False
+    matplotlib.rcParams["text.parse_math"] = False  # names like "$\x$" are shown as written, never parsed
     return plots
 
 
@@ -107,3 +173,61 @@ def write_exports(result, out: Path, formats: list[str] | None) -> list[Path]:
     if formats == []:
         return []
     return _formats_module().export_all(result, out, formats)
+
+
+RUN_FILE = "run.json"
+"""The settings of a run started with ``--checkpoint``, saved in OUT for ``gsr resume OUT``."""
+_PATH_ARGS = ("points", "target", "template", "truth", "checkpoint", "out")
+
+
+def add_run_flags(parser: argparse.ArgumentParser) -> None:
+    """Flags shared by ``gsr curve`` and ``gsr surface``: output, seed, formats, progress, checkpoint."""
+    parser.add_argument("-o", "--out", required=True, help="output directory")
+    parser.add_argument("--seed", type=whole_number, default=None, help="random seed (same seed, same result)")
+    parser.add_argument("--formats", help="comma-separated export formats (default: all installed); 'none' for none")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--checkpoint", metavar="FILE",
+                        help="save the search state to FILE every generation and continue from it if it exists "
+                             "(then `gsr resume OUT` repeats the command); same seed, same result")
+
+
+def check_seed(seed: int | None) -> None:
+    if seed is not None and not 0 <= seed < 2**63:
+        raise InputError(f"seed must lie in [0, 2^63 - 1], not {seed}")
+
+
+def save_run_args(out: Path, args: argparse.Namespace) -> None:
+    """Write ``OUT/run.json`` (the command and its arguments, paths made absolute) for ``gsr resume``."""
+    values = {k: v for k, v in vars(args).items() if k != "run"}
+    for key in _PATH_ARGS:
+        if isinstance(values.get(key), str) and values[key] not in ("", "cube"):
+            values[key] = os.path.abspath(values[key])
+    write_text(out / RUN_FILE, json.dumps(values, indent=1) + "\n")
+
+
+@contextlib.contextmanager
+def searching(label: str, quiet: bool, max_seconds: float | None) -> Iterator[tuple[Any, Any]]:
+    """The search phase: a progress bar and a cooperative stop (Ctrl-C, SIGTERM, ``max_seconds`` hard cap).
+
+    Yields ``(progress, should_stop)``."""
+    with ga_progress(label, enabled=not quiet) as progress, signals.cooperative(max_seconds) as should_stop:
+        yield progress, should_stop
+
+
+def write_outputs(progress: Any, steps: list[tuple[str, Any]]) -> list[Path]:
+    """Run the output ``steps`` (``(status text, callable returning a path or a list of paths)``) in order,
+    with a status line before each; result.json must come first so that it exists, complete, before the
+    slow steps (a Ctrl-C there stops at once and keeps it)."""
+    written: list[Path] = []
+    for text, step in steps:
+        progress.status(text)
+        produced = step()
+        written += produced if isinstance(produced, list) else [produced]
+    return written
+
+
+def settle_stop(result: Any) -> None:
+    """A search cut by the ``--max-seconds`` hard cap (not by a signal) is a normal stop: say so."""
+    if result.interrupted and not signals.interrupted():
+        result.interrupted = False
+        result.metrics["stop_reason"] = "max_seconds"
