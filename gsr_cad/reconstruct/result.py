@@ -76,6 +76,11 @@ class Result:
             common = dict(kind=kind, config=dict(data["config"]), seed=data.get("seed"),
                           genome=genome_mod.from_json(data["genome"]), metrics=dict(data.get("metrics", {})),
                           history=list(data.get("history", [])), interrupted=bool(data.get("interrupted", False)))
+            bounds = common["config"].get("bounds")
+            if bounds is not None:
+                b = np.asarray(bounds, dtype=float)
+                if b.shape != (2, 2) or not np.all(np.isfinite(b)):
+                    raise InputError("result.json config.bounds must be [[x, y], [x, y]] of finite numbers")
             if kind == "curve":
                 pts = np.asarray(data["control_points"], dtype=float)
                 if pts.ndim != 2 or pts.shape[1] != 2 or not np.all(np.isfinite(pts)):
@@ -98,13 +103,9 @@ class Result:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Result:
         """Read a ``result.json`` file (or the one inside a directory)."""
+        from .inputs import read_json
+
         p = Path(path)
         if p.is_dir():
             p = p / "result.json"
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{p}: no such file") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"{p}: not a readable result.json ({exc})") from None
-        return cls.from_json(data)
+        return cls.from_json(read_json(p, "result.json"))
