@@ -199,6 +199,7 @@ def check_seed(seed: int | None) -> None:
 def save_run_args(out: Path, args: argparse.Namespace) -> None:
     """Write ``OUT/run.json`` (the command and its arguments, paths made absolute) for ``gsr resume``."""
     values = {k: v for k, v in vars(args).items() if k != "run"}
+    values["out"] = str(out)
     for key in _PATH_ARGS:
         if isinstance(values.get(key), str) and values[key] not in ("", "cube"):
             values[key] = os.path.abspath(values[key])
@@ -231,3 +232,17 @@ def settle_stop(result: Any) -> None:
     if result.interrupted and not signals.interrupted():
         result.interrupted = False
         result.metrics["stop_reason"] = "max_seconds"
+
+
+def check_output_file(path: str, flag: str) -> Path:
+    """An output file name given with ``flag``: not empty, not a directory, in an existing directory."""
+    if path == "":
+        raise InputError(f"{flag}: empty file name")
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory; {flag} needs a file name (e.g. {p / ('target' + (p.suffix or '.csv'))})")
+    if p.exists() and not p.is_file():
+        raise InputError(f"{p}: exists and is not a regular file")
+    if not p.parent.is_dir() and p.parent.exists():
+        raise InputError(f"{p.parent}: is not a directory")
+    return p

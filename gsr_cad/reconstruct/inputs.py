@@ -264,6 +264,20 @@ def curve_target(points_or_path: np.ndarray | str | os.PathLike[str] | CurveTarg
     return CurveTarget(validate_curve_points(points_or_path), name or "points")
 
 
+def target_kind(path: str | os.PathLike[str]) -> str:
+    """"curve" or "surface" for a target file: meshes, .xyz/.pts and 3-column data are surfaces, 2-column
+    data curves (the file is read to count its columns)."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix in SURFACE_MESH_SUFFIXES or suffix in (".xyz", ".pts"):
+        return "surface"
+    if suffix not in CURVE_SUFFIXES and suffix != "":
+        raise InputError(f"{p}: unsupported target type {suffix!r} (curves: {', '.join(CURVE_SUFFIXES)}; "
+                         f"surfaces: {', '.join(SURFACE_MESH_SUFFIXES + SURFACE_CLOUD_SUFFIXES)})")
+    data = load_npy(p) if suffix == ".npy" else _read_text_table(p)
+    return "curve" if data.ndim == 2 and data.shape[1] == 2 else "surface"
+
+
 # --- surface targets ------------------------------------------------------------------------------------------
 
 SURFACE_MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off")
