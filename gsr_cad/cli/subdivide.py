@@ -9,6 +9,8 @@ from ..errors import InputError
 from ._common import check_output_file, whole_number
 
 DEFAULT_LEVELS = 2
+MAX_LEVELS = 64
+"""Levels beyond which no mesh fits in memory (each level quadruples the faces); refused before any work."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -32,6 +34,9 @@ def run(args: argparse.Namespace) -> int:
     from ..geometry.validation import mesh_report
     from ..reconstruct.meshio import WRITE_FORMATS, load_mesh, save_mesh
 
+    if args.levels > MAX_LEVELS:
+        raise InputError(f"--levels must lie in [0, {MAX_LEVELS}], not {args.levels} "
+                         "(each level quadruples the faces)")
     out = check_output_file(args.output, "-o")
     if out.suffix.lower().lstrip(".") not in WRITE_FORMATS:
         raise InputError(f"{out.name}: cannot write format {out.suffix or '(no suffix)'!r} "
