@@ -7,13 +7,12 @@ Every deliberate error (:class:`~gsr_cad.errors.GsrError`) and every argument er
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
 import warnings
 from collections.abc import Sequence
-
-import numpy as np
 
 from ..errors import GsrError, GsrWarning
 from . import signals
@@ -65,13 +64,28 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     No traceback reaches the user: deliberate errors and OS errors (a full disk, a read-only directory)
     are one ``error: ...`` line with exit code 2; anything else is reported as an internal error (exit 1)
-    unless ``GSR_DEBUG=1`` asks for the traceback.
+    unless ``GSR_DEBUG=1`` asks for the traceback. Run as the program (``argv`` None) after Ctrl-C or
+    SIGTERM, the process ends right away once its output is flushed (native threads of half-stopped
+    libraries cannot then crash the interpreter's shutdown).
     """
-    parser = build_parser()
-    with warnings.catch_warnings(), np.errstate(all="ignore"), signals.handled():
+    code = _main(argv)
+    if argv is None and signals.interrupted():
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    with warnings.catch_warnings(), signals.handled(), contextlib.ExitStack() as stack:
         warnings.showwarning = _show_warning
         warnings.simplefilter("always", GsrWarning)
         try:
+            parser = build_parser()  # imports the subcommands (numpy, scipy): Ctrl-C is handled from here on
+            import numpy as np
+
+            stack.enter_context(np.errstate(all="ignore"))
             args = parser.parse_args(argv)
             if not getattr(args, "command", None):
                 parser.print_help()
@@ -84,6 +98,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {_one_line(exc)}", file=sys.stderr)
             return 2
         except KeyboardInterrupt:
+            if os.environ.get("GSR_DEBUG") == "1":
+                import traceback
+
+                traceback.print_exc()
             print("error: interrupted", file=sys.stderr)
             return 130
         except MemoryError:

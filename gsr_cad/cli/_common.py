@@ -9,7 +9,9 @@ import json
 import math
 import os
 import shutil
+import signal
 import tempfile
+import threading
 import types
 import typing
 from collections.abc import Iterator
@@ -169,10 +171,63 @@ def parse_formats(spec: str | None, kind: str) -> list[str] | None:
 
 
 def write_exports(result, out: Path, formats: list[str] | None) -> list[Path]:
-    """Export ``result`` into ``out`` in the given formats (None = all available)."""
+    """Export ``result`` into ``out`` in the given formats (None = all available): all of them or none.
+
+    The exporters write into a staging folder in ``out``; the files are then moved into place as one
+    transaction (:func:`commit_files`), so an interrupt or a failed move never leaves a mix of old and new
+    exports; the staging folder of a killed run is removed by the next one (:func:`clean_stale`).
+    """
     if formats == []:
         return []
-    return _formats_module().export_all(result, out, formats)
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIXES[0], dir=out))
+    except OSError as exc:
+        raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
+    try:
+        produced = _formats_module().export_all(result, staging, formats)
+        return commit_files(staging, out, produced)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def commit_files(staging: Path, out: Path, files: list[Path]) -> list[Path]:
+    """Move ``files`` (inside ``staging``) to the same relative places in ``out``, all or none.
+
+    Ctrl-C and SIGTERM are held back while the renames run (they take milliseconds); if one fails, the
+    moves already made are undone and the files they replaced restored, then ExportError is raised.
+    """
+    moves = [(src, out / src.relative_to(staging)) for src in files]
+    for _, target in moves:
+        if target.is_dir():
+            raise ExportError(f"cannot write {target}: it is a directory")
+    backup = staging / ".replaced"
+    done: list[tuple[Path, Path, Path | None]] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    blocked = threading.current_thread() is threading.main_thread()
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        for i, (src, target) in enumerate(moves):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            old = None
+            if target.exists():
+                backup.mkdir(exist_ok=True)
+                old = backup / str(i)
+                os.replace(target, old)
+            done.append((src, target, old))
+            os.replace(src, target)
+    except OSError as exc:
+        for src, target, old in reversed(done):
+            with contextlib.suppress(OSError):
+                if target.exists() and not src.exists():
+                    os.replace(target, src)
+                if old is not None:
+                    os.replace(old, target)
+        raise ExportError(f"cannot write the exports to {out}: {exc.strerror or exc}; none was written") from None
+    finally:
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
+    return [target for _, target in moves]
 
 
 RUN_FILE = "run.json"
@@ -215,21 +270,38 @@ def searching(label: str, quiet: bool, max_seconds: float | None) -> Iterator[tu
         yield progress, should_stop
 
 
+SLOW_STEPS = ("drawing", "writing the exports")
+"""How the status texts of the slow output steps start (the report, the exports)."""
+
+
 def write_outputs(progress: Any, steps: list[tuple[str, Any]]) -> list[Path]:
     """Run the output ``steps`` (``(status text, callable returning a path or a list of paths)``) in order,
-    with a status line before each; result.json must come first so that it exists, complete, before the
-    slow steps (a Ctrl-C there stops at once and keeps it)."""
+    with a status line before each.
+
+    The fast steps come first (result.json, then the control geometry) and run shielded from signals, so
+    they exist, complete, before the slow ones (texts starting with :data:`SLOW_STEPS`). After Ctrl-C or
+    SIGTERM the slow steps are skipped (the run stops within moments); a signal during one stops it at once.
+    """
     written: list[Path] = []
     for text, step in steps:
+        slow = text.startswith(SLOW_STEPS)
+        if slow and signals.interrupted():
+            progress.status("stopped early: report.png and the exports are skipped "
+                            "(`gsr replay OUT -o OUT` writes the exports)")
+            break
         progress.status(text)
-        produced = step()
+        with contextlib.nullcontext() if slow else signals.shielded():
+            produced = step()
         written += produced if isinstance(produced, list) else [produced]
     return written
 
 
 def settle_stop(result: Any) -> None:
-    """A search cut by the ``--max-seconds`` hard cap (not by a signal) is a normal stop: say so."""
-    if result.interrupted and not signals.interrupted():
+    """A search cut by the ``--max-seconds`` hard cap (not by a signal) is a normal stop: say so; a signal
+    at any point (the final refinement is then cut short) marks the result interrupted."""
+    if signals.interrupted():
+        result.interrupted = True
+    elif result.interrupted:
         result.interrupted = False
         result.metrics["stop_reason"] = "max_seconds"
 
@@ -240,7 +312,7 @@ def check_output_file(path: str, flag: str) -> Path:
         raise InputError(f"{flag}: empty file name")
     p = Path(path)
     if p.is_dir():
-        raise InputError(f"{p}: is a directory; {flag} needs a file name (e.g. {p / ('target' + (p.suffix or '.csv'))})")
+        raise InputError(f"{p}: is a directory; {flag} needs a file name (e.g. {p / 'target.csv'})")
     if p.exists() and not p.is_file():
         raise InputError(f"{p}: exists and is not a regular file")
     if not p.parent.is_dir() and p.parent.exists():

@@ -8,7 +8,8 @@ from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
 from ._common import (add_config_flags, add_run_flags, check_seed, config_overrides, output_dir, parse_formats,
-                      plots_module, save_run_args, searching, settle_stop, write_control_points, write_exports, write_outputs)
+                      plots_module, save_run_args, searching, settle_stop, write_control_points, write_exports,
+                      write_outputs)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,12 +38,12 @@ def run(args: argparse.Namespace) -> int:
             result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
                                        progress=progress, should_stop=should_stop, checkpoint=args.checkpoint)
     settle_stop(result)
-    plots = plots_module()
     written = write_outputs(progress, [
         ("writing result.json", lambda: result.save(out)),
         ("writing control_points.csv",
          lambda: write_control_points(out / "control_points.csv", result.control_points)),
-        ("drawing report.png", lambda: plots.curve_report(result, target.points, out / "report.png", truth=truth)),
+        ("drawing report.png",
+         lambda: plots_module().curve_report(result, target.points, out / "report.png", truth=truth)),
         ("writing the exports", lambda: write_exports(result, out, formats)),
     ])
     m = result.metrics

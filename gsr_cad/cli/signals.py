@@ -51,8 +51,8 @@ def handled() -> Iterator[None]:
     try:
         yield
     finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
+        for s, h in previous.items():  # once stopping, later signals must not turn the exit into a traceback
+            signal.signal(s, signal.SIG_IGN if _state.count else h)
 
 
 def stop_requested() -> bool:
@@ -79,3 +79,14 @@ def cooperative(max_seconds: float | None = None) -> Iterator[Callable[[], bool]
     finally:
         _state.cooperative = False
         _state.deadline = None
+
+
+@contextlib.contextmanager
+def shielded() -> Iterator[None]:
+    """A short section (writing result.json) that a signal must not cut: it only sets the stop flag."""
+    before = _state.cooperative
+    _state.cooperative = True
+    try:
+        yield
+    finally:
+        _state.cooperative = before

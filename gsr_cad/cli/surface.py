@@ -18,7 +18,8 @@ from ..reconstruct.inputs import surface_target
 from ..reconstruct.meshio import save_obj
 from ..reconstruct.surface import make_template, reconstruct_surface
 from ._common import (add_config_flags, add_run_flags, check_seed, config_overrides, output_dir, parse_formats,
-                      plots_module, save_run_args, searching, settle_stop, whole_number, write_exports, write_outputs)
+                      plots_module, save_run_args, searching, settle_stop, whole_number, write_exports,
+                      write_outputs)
 
 MAX_WORKERS = 256
 
@@ -58,19 +59,18 @@ def run(args: argparse.Namespace) -> int:
                                      preset=args.preset, progress=progress, evaluator=pool,
                                      should_stop=should_stop, checkpoint=args.checkpoint)
     settle_stop(result)
-    plots = plots_module()
     written = write_outputs(progress, [
         ("writing result.json", lambda: result.save(out)),
         ("writing control_mesh.obj", lambda: save_obj(result.control_mesh, out / "control_mesh.obj")),
         ("writing limit_mesh.obj", lambda: save_obj(limit_mesh(result.control_mesh, config.levels, config.boundary),
                                                     out / "limit_mesh.obj")),
-        ("drawing report.png", lambda: plots.surface_report(result, out / "report.png")),
+        ("drawing report.png", lambda: plots_module().surface_report(result, out / "report.png")),
         ("writing the exports", lambda: write_exports(result, out, formats)),
     ])
     m = result.metrics
     status = "interrupted: best so far" if result.interrupted else "done"
     print(f"{status}: {m['n_control_faces']} control faces, {m['n_control_vertices']} vertices, "
-          f"ops {plots.run_length(m['ops']) or '-'}; "
+          f"ops {plots_module().run_length(m['ops']) or '-'}; "
           f"mean distance {m['mean_distance']:.3g}, max {m['max_distance']:.3g} of the diagonal "
           f"(mixed mean {m['mixed_mean_distance']:.3g}), {m['seconds']:.1f} s -> {out}")
     for path in written:
