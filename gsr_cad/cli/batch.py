@@ -44,22 +44,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=("default", "paper"), default="default", help="preset of every run")
     p.add_argument("--seed", type=whole_number, default=None, help="random seed of every run")
     p.add_argument("--formats", default="none", help="export formats of every run (default none)")
-    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
-                   help="a setting for every run of the matching kind, e.g. --set generations=20 (repeatable)")
+    p.add_argument("--set", action="append", default=[], metavar="[KIND.]FIELD=VALUE",
+                   help="a setting for every run, or only the curve or surface runs, e.g. --set generations=20 "
+                        "--set surface.population=20 (repeatable)")
     p.add_argument("--timeout", type=float, default=0.0,
                    help="seconds after which a target's run is stopped (0: none); it then keeps its best so far")
     p.add_argument("--quiet", action="store_true", help="no per-target lines")
     p.set_defaults(run=run)
 
 
-def _settings(pairs: list[str]) -> list[str]:
-    """``FIELD=VALUE`` pairs as command-line flags (checked by each run's own parser)."""
+def _settings(pairs: list[str], kind: str) -> list[str]:
+    """The ``[KIND.]FIELD=VALUE`` pairs that apply to ``kind`` as command-line flags (the values are checked
+    by each run's own parser)."""
     flags = []
     for pair in pairs:
         field, sep, value = pair.partition("=")
-        if not sep or not field.strip() or not field.replace("_", "-").replace("-", "").isalnum():
-            raise InputError(f"--set expects FIELD=VALUE, not {pair!r}")
-        flags += ["--" + field.strip().replace("_", "-"), value.strip()]
+        scope, dot, name = field.strip().rpartition(".")
+        if not sep or not name or not name.replace("_", "").replace("-", "").isalnum() or \
+                (dot and scope not in ("curve", "surface")):
+            raise InputError(f"--set expects [curve.|surface.]FIELD=VALUE, not {pair!r}")
+        if not dot or scope == kind:  # FIELD= (no value) is a switch such as no-simplify-history
+            flags += ["--" + name.replace("_", "-")] + ([value.strip()] if value.strip() else [])
     return flags
 
 
@@ -169,9 +174,10 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.timeout) and 0 <= args.timeout <= 2_592_000):
         raise ConfigError(f"--timeout must lie in [0, 2592000] seconds, not {args.timeout}")
     check_seed(args.seed)
-    flags = ["--preset", args.preset, "--formats", args.formats, *_settings(args.set)]
+    common = ["--preset", args.preset, "--formats", args.formats]
     if args.seed is not None:
-        flags += ["--seed", str(args.seed)]
+        common += ["--seed", str(args.seed)]
+    flags = {kind: common + _settings(args.set, kind) for kind in ("curve", "surface")}
     kinds = []
     for path in args.inputs:
         open_input(path, "target file")
@@ -201,14 +207,16 @@ def run(args: argparse.Namespace) -> int:
     return 0 if not failed else (2 if failed == len(rows) else 1)
 
 
-def _run_all(args: argparse.Namespace, rows: list[dict[str, Any]], todo: list[int], flags: list[str], out: Path,
+def _run_all(args: argparse.Namespace, rows: list[dict[str, Any]], todo: list[int], flags: dict[str, list[str]],
+             out: Path,
              finished: int) -> int:
     from dask import distributed
 
     client, cluster = _client(args)
     try:
         futures = {client.submit(run_target, os.path.abspath(rows[i]["target"]), rows[i]["kind"],
-                                 os.path.abspath(rows[i]["out"]), flags, args.timeout, pure=False, key=f"gsr-{i}"): i
+                                 os.path.abspath(rows[i]["out"]), flags[rows[i]["kind"]], args.timeout, pure=False,
+                                 key=f"gsr-{i}"): i
                    for i in todo}
         for future in distributed.as_completed(futures):
             i = futures[future]
