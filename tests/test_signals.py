@@ -146,3 +146,15 @@ def test_second_ctrl_c_still_leaves_a_result(tmp_path):
     assert "stopping..." in err and "Traceback" not in err
     assert _check_out(out, "surface", killed=False) == "complete", err
     assert Result.load(out / "result.json").interrupted
+
+
+def test_max_seconds_is_a_hard_cap(tmp_path):
+    """--max-seconds bounds the whole reconstruction (search, polish, rewrite), not just the generations."""
+    out = tmp_path / "out"
+    run = gsr([*_argv("surface", tmp_path, out), "--generations", "200", "--max-seconds", "3", "--formats", "none",
+               "--quiet"], tmp_path)
+    assert_clean(run)
+    assert run.code == 0, run.describe()
+    result = Result.load(out / "result.json")
+    assert result.metrics["stop_reason"] == "max_seconds" and not result.interrupted
+    assert result.metrics["seconds"] < 3 + 2.5, result.metrics["seconds"]
