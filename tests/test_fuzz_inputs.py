@@ -264,6 +264,38 @@ for special in ("/dev/zero", "/dev/null", "."):
     case(f"replay-special-{special}")(lambda d, s=special: ["replay", s, "-o", d / "out"])
 
 
+@case("curve-sparse-2GiB")
+def _(d):
+    with open(d / "big.csv", "wb") as fh:
+        fh.truncate(2 << 30)  # sparse: costs no disk
+    return ["curve", d / "big.csv", "-o", d / "out", *TINY_CURVE]
+
+
+@case("curve-offset-rounding")
+def _(d):
+    return ["curve", _file(d, "o.csv", "".join(f"{1e15 + i * 1e-4},{1e15 - i * 1e-4}\n" for i in range(20))), "-o",
+            d / "out", *TINY_CURVE]
+
+
+for ck in ("", ".", "/dev/zero", "nodir/x.ckpt", "garbage.ckpt"):
+    @case(f"curve-checkpoint-{ck or 'empty'}")
+    def _(d, ck=ck):
+        if ck == "garbage.ckpt":
+            _file(d, ck, b"\x80\x04garbage")
+        return ["curve", _file(d, "c.csv", _curve_csv()), "-o", d / "out", "--checkpoint", ck, *TINY_CURVE]
+
+
+@case("curve-symlink-loop")
+def _(d):
+    os.symlink(d / "loop.csv", d / "loop.csv")
+    return ["curve", d / "loop.csv", "-o", d / "out", *TINY_CURVE]
+
+
+@case("curve-name-too-long")
+def _(d):
+    return ["curve", "x" * 5000 + ".csv", "-o", d / "out", *TINY_CURVE]
+
+
 @case("curve-fifo")
 def _(d):
     os.mkfifo(d / "pipe.csv")
@@ -391,7 +423,7 @@ def test_fuzz(tmp_path, name, expect, write):
 
 
 def test_corpus_is_bounded():
-    assert 120 <= len(CASES) <= 220
+    assert 150 <= len(CASES) <= 220
     assert len({c[0] for c in CASES}) == len(CASES)
 
 

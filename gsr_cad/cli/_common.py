@@ -22,6 +22,7 @@ import numpy as np
 
 from ..atomic import write_text
 from ..errors import ExportError, InputError
+from ..reconstruct.inputs import open_input
 from . import signals
 from .progress import ga_progress
 
@@ -230,6 +231,8 @@ def commit_files(staging: Path, out: Path, files: list[Path]) -> list[Path]:
     return [target for _, target in moves]
 
 
+MAX_CHECKPOINT_BYTES = 4 << 30
+"""Largest checkpoint read back (4 GiB)."""
 RUN_FILE = "run.json"
 """The settings of a run started with ``--checkpoint``, saved in OUT for ``gsr resume OUT``."""
 _PATH_ARGS = ("points", "target", "template", "truth", "checkpoint", "out")
@@ -249,6 +252,21 @@ def add_run_flags(parser: argparse.ArgumentParser) -> None:
 def check_seed(seed: int | None) -> None:
     if seed is not None and not 0 <= seed < 2**63:
         raise InputError(f"seed must lie in [0, 2^63 - 1], not {seed}")
+
+
+def check_run_args(args: argparse.Namespace) -> None:
+    """The flags shared by curve and surface runs: a seed in range and a usable ``--checkpoint`` file (an
+    existing one must be a regular file: it is resumed)."""
+    check_seed(args.seed)
+    if args.checkpoint is None:
+        return
+    if args.checkpoint == "":
+        raise InputError("--checkpoint: empty file name")
+    ck = Path(args.checkpoint)
+    if os.path.lexists(ck):
+        open_input(ck, "checkpoint", limit=MAX_CHECKPOINT_BYTES)
+    elif not ck.parent.is_dir():
+        raise InputError(f"--checkpoint {ck}: directory {ck.parent} does not exist")
 
 
 def save_run_args(out: Path, args: argparse.Namespace) -> None:

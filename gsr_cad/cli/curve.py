@@ -7,7 +7,7 @@ import argparse
 from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
-from ._common import (add_config_flags, add_run_flags, check_seed, config_overrides, output_dir, parse_formats,
+from ._common import (add_config_flags, add_run_flags, check_run_args, config_overrides, output_dir, parse_formats,
                       plots_module, save_run_args, searching, settle_stop, write_control_points, write_exports,
                       write_outputs)
 
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     target = curve_target(args.points)
     overrides = config_overrides(args, CurveConfig)
     config = CurveConfig.preset(args.preset, **overrides)
-    check_seed(args.seed)
+    check_run_args(args)
     truth = load_curve_points(args.truth) if args.truth else None
     formats = parse_formats(args.formats, "curve")
     with output_dir(args.out) as out:

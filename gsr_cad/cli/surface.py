@@ -17,9 +17,8 @@ from ..reconstruct.config import PRESETS, SurfaceConfig
 from ..reconstruct.inputs import surface_target
 from ..reconstruct.meshio import save_obj
 from ..reconstruct.surface import make_template, reconstruct_surface
-from ._common import (add_config_flags, add_run_flags, check_seed, config_overrides, output_dir, parse_formats,
-                      plots_module, save_run_args, searching, settle_stop, whole_number, write_exports,
-                      write_outputs)
+from ._common import (add_config_flags, add_run_flags, check_run_args, config_overrides, output_dir, parse_formats,
+                      plots_module, save_run_args, searching, settle_stop, whole_number, write_exports, write_outputs)
 
 MAX_WORKERS = 256
 
@@ -44,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     target = surface_target(args.target)
     config = SurfaceConfig.preset(args.preset, **config_overrides(args, SurfaceConfig))
-    check_seed(args.seed)
+    check_run_args(args)
     make_template(args.template, target, config)  # a bad template file fails here, before any output
     if not 1 <= args.workers <= MAX_WORKERS:
         raise ConfigError(f"workers must lie in [1, {MAX_WORKERS}], not {args.workers}")

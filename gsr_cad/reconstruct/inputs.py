@@ -25,8 +25,12 @@ MAX_INPUT_BYTES = 1 << 30
 """Largest input file read (1 GiB): enough for 10^7 text points; anything bigger is refused before reading."""
 MAX_POINTS = 20_000_000
 """Most points a target may have."""
-MAX_COORDINATE = 1e100
-"""Largest coordinate magnitude accepted: distances and squared distances of larger ones overflow doubles."""
+MAX_COORDINATE = 1e50
+"""Largest coordinate magnitude accepted: areas squared (fourth powers) of larger ones overflow doubles."""
+MIN_EXTENT = 1e-50
+"""Smallest extent of a target (fourth powers of smaller ones underflow)."""
+MIN_RELATIVE_EXTENT = 1e-12
+"""Smallest extent relative to the largest coordinate (below, the points differ only in rounding)."""
 MAX_JSON_BYTES = 256 << 20
 """Largest JSON document read (256 MiB)."""
 MAX_JSON_INT_DIGITS = 30
@@ -144,9 +148,13 @@ def check_coordinates(pts: np.ndarray, source: str) -> None:
         raise InputError(f"{source}: point {bad + 1} has a coordinate of magnitude {big:.3g}; at most "
                          f"{MAX_COORDINATE:.0e} is supported (rescale the data)")
     spread = float((pts.max(axis=0) - pts.min(axis=0)).max(initial=0.0)) if len(pts) else 0.0
-    if 0.0 < spread < 1e-100 * max(1.0, big) or 0.0 < spread < 1e-100:
-        raise InputError(f"{source}: the points span only {spread:.3g}; the extent must be at least 1e-100 "
-                         "(and 1e-100 of the largest coordinate) (rescale the data)")
+    if 0.0 < spread < MIN_EXTENT:
+        raise InputError(f"{source}: the points span only {spread:.3g}; the extent must be at least "
+                         f"{MIN_EXTENT:.0e} (rescale the data)")
+    if 0.0 < spread < MIN_RELATIVE_EXTENT * big:
+        raise InputError(f"{source}: the points span only {spread:.3g} at coordinates of {big:.3g}: they differ "
+                         f"only in rounding (the extent must be at least {MIN_RELATIVE_EXTENT:.0e} of the largest "
+                         "coordinate; subtract an offset)")
 
 
 class _PointSet:
@@ -417,7 +425,7 @@ def validate_surface_points(points: np.ndarray, source: str = "points") -> np.nd
         raise InputError(f"{source}: need at least 4 points, got {len(pts)}")
     centred = pts - pts.mean(axis=0)
     sv = np.linalg.svd(centred, compute_uv=False)
-    if sv[0] <= 1e-12 * max(1.0, float(np.abs(pts).max())):
+    if sv[0] <= 1e-12 * float(np.abs(pts).max()):
         raise InputError(f"{source}: all points coincide (a single point)")
     if sv[1] <= 1e-9 * sv[0]:
         raise InputError(f"{source}: degenerate target: all points lie on a line")
