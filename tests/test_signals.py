@@ -158,3 +158,17 @@ def test_max_seconds_is_a_hard_cap(tmp_path):
     result = Result.load(out / "result.json")
     assert result.metrics["stop_reason"] == "max_seconds" and not result.interrupted
     assert result.metrics["seconds"] < 3 + 2.5, result.metrics["seconds"]
+
+
+def test_ctrl_c_with_a_process_pool(tmp_path):
+    """--workers 2: Ctrl-C stops the pool's batch too; the best so far is kept."""
+    out = tmp_path / "out"
+    run = Watched([*_argv("surface", tmp_path, out), "--workers", "2", "--formats", "none"], tmp_path)
+    time.sleep(5.0)
+    sent = time.monotonic()
+    run.proc.send_signal(signal.SIGINT)
+    run.finish()
+    assert time.monotonic() - sent < STOP_SECONDS, "".join(run.err)
+    err = "".join(run.err)
+    assert "Traceback" not in err and run.proc.returncode in (0, 130), err
+    assert _check_out(out, "surface", killed=False) in ("complete", "untouched")
