@@ -17,6 +17,7 @@ import csv
 import io
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -91,11 +92,23 @@ def _complete(out: Path) -> dict[str, Any] | None:
     return None if result.interrupted else {"kind": result.kind, "metrics": result.metrics}
 
 
+def _stop_with_parent() -> None:
+    """In the child, before exec: on Linux, get SIGTERM (= Ctrl-C: keep the best so far) if the worker that
+    started it dies, so that a stopped batch leaves no run behind."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def run_target(path: str, kind: str, out: str, flags: list[str], timeout: float) -> dict[str, Any]:
     """Run one target as a ``gsr`` process (on a cluster worker); returns its summary row."""
     started = time.perf_counter()
     cmd = [sys.executable, "-m", "gsr_cad", kind, path, "-o", out, "--quiet", *flags]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL,
+                            preexec_fn=_stop_with_parent if sys.platform.startswith("linux") else None)
     try:
         stdout, stderr = proc.communicate(timeout=timeout or None)
     except subprocess.TimeoutExpired:
