@@ -177,24 +177,24 @@ class CurveProblem:
             self._fits[n] = (fit, fit.rms / self.diag, float(fit.distances.max()) / self.diag)
         return self._fits[n]
 
-    def final_fit(self, n: int, quick: bool = False) -> CurveFit:
+    def final_fit(self, n: int, hurry: bool = False) -> CurveFit:
         """The search's fit of ``n`` points refined to convergence (done once, for the winner).
 
         With a max-distance limit, placements that meet it win over those that do not; then the lower
         RMS wins (a converged least-squares fit beats a minimax one whenever both meet the limit).
         """
-        searched = self.fit(n)[0]
-        if self.config.fitness != "geometric" or quick:
-            return searched
+        quick = self.fit(n)[0]
+        if self.config.fitness != "geometric" or hurry:
+            return quick
         fit = fit_curve(self.points, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo,
-                        hi=self.hi, rtol=1e-7, warm_params=searched.params)
+                        hi=self.hi, rtol=1e-7, warm_params=quick.params)
         limit = self.config.max_distance
 
         def rank(f: CurveFit) -> tuple[bool, float]:
             misses = limit is not None and float(f.distances.max()) / self.diag > limit
             return misses, f.rms
 
-        return min((fit, searched), key=rank)
+        return min((fit, quick), key=rank)
 
     def structure_cost(self, n: int) -> float:
         _, rms_rel, max_rel = self.fit(n)
@@ -203,7 +203,7 @@ class CurveProblem:
             cost *= 1e6 * (max_rel / self.config.max_distance) ** 2  # infeasible: worse, and graded by the miss
         return cost
 
-    def polished(self, genome: tuple, quick: bool = False) -> tuple:
+    def polished(self, genome: tuple, hurry: bool = False) -> tuple:
         """The genome rewritten onto the least-squares placement, as a clean modelling history.
 
         The genome's insertions are kept in order (same indices) but each inserts its point where the
@@ -214,7 +214,7 @@ class CurveProblem:
         ids = list(range(self.template.n))
         for k, op in enumerate(adds):
             ids.insert(op.index, self.template.n + k)
-        fitted = self.final_fit(len(ids), quick).ctrl
+        fitted = self.final_fit(len(ids), hurry).ctrl
         where = {point_id: fitted[i] for i, point_id in enumerate(ids)}
         placed = tuple(curve_ops.AddPoint(op.index, tuple(float(v) for v in where[self.template.n + k]))
                        for k, op in enumerate(adds))
@@ -298,7 +298,7 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     run: RunResult = engine.run(on_generation=progress, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
     hurry = should_stop is not None and should_stop()
-    final = problem.polished(best, quick=hurry) if config.polish else best
+    final = problem.polished(best, hurry=hurry) if config.polish else best
     ctrl = genome_mod.replay(problem.template, final).points
     metrics = curve_metrics(ctrl, target, problem.degree)
     metrics.update({
