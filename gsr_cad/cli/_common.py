@@ -131,14 +131,13 @@ def prepare_out_dir(path: str, names: tuple[str, ...] = OUTPUT_NAMES) -> Path:
 def output_dir(path: str, names: tuple[str, ...] = OUTPUT_NAMES) -> Iterator[Path]:
     """:func:`prepare_out_dir`, and if the block fails before writing anything, remove the directory again
     when this call created it (an interrupted or failed run leaves OUT untouched)."""
-    existed = Path(path).exists() if path else False
-    out = prepare_out_dir(path, names)
+    existed = Path(path).exists() if path else True
     try:
-        yield out
+        yield prepare_out_dir(path, names)
     except BaseException:
         if not existed:
             with contextlib.suppress(OSError):
-                out.rmdir()  # only if still empty
+                Path(path).rmdir()  # only if still empty
         raise
 
 

@@ -69,15 +69,15 @@ def _ranges(config: Any, limits: dict[str, tuple[float, float]]) -> None:
             raise ConfigError(f"{_flag(field)} must lie in [{low:g}, {high:g}], not {value!r}")
 
 
-_RUN_LIMITS = {"population": (2, 10_000), "initial_population": (1, 100_000), "min_initial_ops": (1, 1000),
-               "max_initial_ops": (1, 1000), "min_ops": (1, 1000), "generations": (1, 1_000_000),
+_RUN_LIMITS = {"population": (2, 10_000), "initial_population": (1, 100_000), "min_initial_ops": (1, 50),
+               "max_initial_ops": (1, 50), "min_ops": (1, 50), "generations": (1, 1_000_000),
                "stall_generations": (0, 1_000_000), "max_seconds": (0, 2_592_000)}
 """Allowed ranges of the GA settings shared by curves and surfaces (max-seconds: 30 days)."""
 CURVE_LIMITS = {**_RUN_LIMITS, "tolerance": (0, 1), "max_distance": (0, 1), "bounds_margin": (0, 100),
                 "move_scale": (0, 10), "max_control_points": (0, 10_000), "fit_iterations": (1, 10_000),
                 "threshold": (-1e300, 1e300)}
 """Allowed range of each numeric curve setting (distances are fractions of the target's diagonal)."""
-SURFACE_LIMITS = {**_RUN_LIMITS, "min_ops": (1, 200), "move_range": (0, 10), "extrude_range": (0, 10),
+SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10),
                   "face_move_range": (0, 10), "perturb_rel": (0, 1), "max_scale_factor": (1, 100),
                   "max_control_faces": (1, 100_000), "max_target_points": (0, 20_000_000),
                   "polish_rounds": (0, 1000), "final_polish_rounds": (0, 1000), "polish_every": (0, 1_000_000),
