@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from ..errors import InputError
+from ._common import check_output_file
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -36,8 +37,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.name:
         raise InputError("sample needs a NAME (see gsr sample --list)")
     sample = get_sample(args.name)
-    if not args.output:
+    if args.output is None:
         raise InputError("sample needs -o FILE (where to write the target)")
+    for flag in ("output", "truth", "clean", "cloud"):
+        if getattr(args, flag) is not None:
+            check_output_file(getattr(args, flag), "-o" if flag == "output" else f"--{flag}")
     for flag, method in (("clean", "write_clean"), ("cloud", "write_cloud")):
         if getattr(args, flag) and not hasattr(sample, method):
             raise InputError(f"--{flag} does not apply to {sample.kind} sample {args.name!r}")

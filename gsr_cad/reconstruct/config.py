@@ -95,6 +95,32 @@ def _check(config: Any, fields: tuple[str, ...], ok: Callable[[Any], bool], requ
             raise ConfigError(f"{_flag(field)} must {requirement}, not {value!r}")
 
 
+def _ranges(config: Any, limits: dict[str, tuple[float, float]]) -> None:
+    """ConfigError naming the first field outside its allowed range ``[low, high]`` (stated in the message)."""
+    for field, (low, high) in limits.items():
+        value = getattr(config, field)
+        if value is not None and _real(value) and not low <= value <= high:
+            raise ConfigError(f"{_flag(field)} must lie in [{low:g}, {high:g}], not {value!r}")
+
+
+_RUN_LIMITS = {"population": (2, 10_000), "initial_population": (1, 100_000), "min_initial_ops": (1, 50),
+               "max_initial_ops": (1, 50), "min_ops": (1, 50), "generations": (1, 1_000_000),
+               "stall_generations": (0, 1_000_000), "max_seconds": (0, 2_592_000)}
+"""Allowed ranges of the GA settings shared by curves and surfaces (max-seconds: 30 days)."""
+CURVE_LIMITS = {**_RUN_LIMITS, "tolerance": (0, 1), "max_distance": (0, 1), "bounds_margin": (0, 100),
+                "move_scale": (0, 10), "max_control_points": (0, 10_000), "fit_iterations": (1, 10_000),
+                "threshold": (-1e300, 1e300)}
+"""Allowed range of each numeric curve setting (distances are fractions of the target's diagonal)."""
+SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10),
+                  "face_move_range": (0, 10), "perturb_rel": (0, 1), "max_scale_factor": (1, 100),
+                  "max_control_faces": (1, 100_000), "max_target_points": (0, 20_000_000),
+                  "polish_rounds": (0, 1000), "final_polish_rounds": (0, 1000), "polish_every": (0, 1_000_000),
+                  "polish_niches": (1, 100), "polish_damping": (0, 1000), "history_tolerance": (0, 1),
+                  "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
+                  "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000)}
+"""Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class CurveConfig:
     """All settings of a curve reconstruction (see the module docstring for the presets)."""
@@ -193,6 +219,7 @@ class CurveConfig:
         if self.max_control_points and self.max_control_points < 4:
             raise ConfigError("max-control-points must be at least 4 (the template has 4)")
         _check_units(self)
+        _ranges(self, CURVE_LIMITS)
         return self
 
     def to_json(self) -> dict[str, Any]:
@@ -345,6 +372,7 @@ class SurfaceConfig:
                       "max_seconds", "history_tolerance"), _finite_non_negative, "be a finite number >= 0")
         _check(self, ("max_scale_factor",), lambda v: _finite_non_negative(v) and v >= 1.0, "be a finite number >= 1")
         _check_units(self)
+        _ranges(self, SURFACE_LIMITS)
         return self
 
     def to_json(self) -> dict[str, Any]:

@@ -492,22 +492,12 @@ class Result:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Result:
         """Read a ``result.json`` file (or the one inside a directory)."""
+        from .inputs import read_json
+
         p = Path(path)
         if p.is_dir():
             p = p / "result.json"
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"), parse_constant=_no_constant)
-        except FileNotFoundError:
-            raise InputError(f"{p}: no such file") from None
-        except RecursionError:
-            raise InputError(f"{p}: nested too deeply to be a result.json") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"{p}: not a readable result.json ({exc})") from None
-        return cls.from_json(data)
-
-
-def _no_constant(name: str) -> Any:
-    raise json.JSONDecodeError(f"{name} is not a number", name, 0)
+        return cls.from_json(read_json(p, "result.json"))
 
 
 @dataclasses.dataclass
