@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import threading
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -61,3 +63,43 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     with atomic_open(path, "wb") as fh:
         fh.write(data)
     return Path(path)
+
+
+def commit_files(staging: Path, out: Path, files: list[Path]) -> list[Path]:
+    """Move ``files`` (inside ``staging``) to the same relative places in ``out``, all or none.
+
+    Ctrl-C and SIGTERM are held back while the renames run (they take milliseconds); if one fails, the
+    moves already made are undone and the files they replaced restored, then ExportError is raised.
+    """
+    moves = [(src, out / src.relative_to(staging)) for src in files]
+    for _, target in moves:
+        if target.is_dir():
+            raise ExportError(f"cannot write {target}: it is a directory")
+    backup = staging / ".replaced"
+    done: list[tuple[Path, Path, Path | None]] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    blocked = threading.current_thread() is threading.main_thread()
+    if blocked:
+        signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        for i, (src, target) in enumerate(moves):
+            target.parent.mkdir(parents=True, exist_ok=True)
+            old = None
+            if target.exists():
+                backup.mkdir(exist_ok=True)
+                old = backup / str(i)
+                os.replace(target, old)
+            done.append((src, target, old))
+            os.replace(src, target)
+    except OSError as exc:
+        for src, target, old in reversed(done):
+            with contextlib.suppress(OSError):
+                if target.exists() and not src.exists():
+                    os.replace(target, src)
+                if old is not None:
+                    os.replace(old, target)
+        raise ExportError(f"cannot write the exports to {out}: {exc.strerror or exc}; none was written") from None
+    finally:
+        if blocked:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
+    return [target for _, target in moves]

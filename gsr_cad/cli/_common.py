@@ -9,9 +9,7 @@ import json
 import math
 import os
 import shutil
-import signal
 import tempfile
-import threading
 import types
 import typing
 from collections.abc import Iterator
@@ -225,63 +223,11 @@ def parse_formats(spec: str | None, kind: str) -> list[str] | None:
 
 
 def write_exports(result, out: Path, formats: list[str] | None) -> list[Path]:
-    """Export ``result`` into ``out`` in the given formats (None = all available): all of them or none.
-
-    The exporters write into a staging folder in ``out``; the files are then moved into place as one
-    transaction (:func:`commit_files`), so an interrupt or a failed move never leaves a mix of old and new
-    exports; the staging folder of a killed run is removed by the next one (:func:`clean_stale`).
-    """
+    """Export ``result`` into ``out`` in the given formats (None = all available): all of them or none
+    (:func:`gsr_cad.reconstruct.export.export` stages them and moves them into place as one transaction)."""
     if formats == []:
         return []
-    try:
-        staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIXES[0], dir=out))
-    except OSError as exc:
-        raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
-    try:
-        produced = _formats_module().export_all(result, staging, formats)
-        return commit_files(staging, out, produced)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-
-
-def commit_files(staging: Path, out: Path, files: list[Path]) -> list[Path]:
-    """Move ``files`` (inside ``staging``) to the same relative places in ``out``, all or none.
-
-    Ctrl-C and SIGTERM are held back while the renames run (they take milliseconds); if one fails, the
-    moves already made are undone and the files they replaced restored, then ExportError is raised.
-    """
-    moves = [(src, out / src.relative_to(staging)) for src in files]
-    for _, target in moves:
-        if target.is_dir():
-            raise ExportError(f"cannot write {target}: it is a directory")
-    backup = staging / ".replaced"
-    done: list[tuple[Path, Path, Path | None]] = []
-    held = (signal.SIGINT, signal.SIGTERM)
-    blocked = threading.current_thread() is threading.main_thread()
-    if blocked:
-        signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    try:
-        for i, (src, target) in enumerate(moves):
-            target.parent.mkdir(parents=True, exist_ok=True)
-            old = None
-            if target.exists():
-                backup.mkdir(exist_ok=True)
-                old = backup / str(i)
-                os.replace(target, old)
-            done.append((src, target, old))
-            os.replace(src, target)
-    except OSError as exc:
-        for src, target, old in reversed(done):
-            with contextlib.suppress(OSError):
-                if target.exists() and not src.exists():
-                    os.replace(target, src)
-                if old is not None:
-                    os.replace(old, target)
-        raise ExportError(f"cannot write the exports to {out}: {exc.strerror or exc}; none was written") from None
-    finally:
-        if blocked:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
-    return [target for _, target in moves]
+    return _formats_module().export_all(result, out, formats)
 
 
 MAX_CHECKPOINT_BYTES = 4 << 30

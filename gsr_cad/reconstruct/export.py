@@ -33,7 +33,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
-from ..atomic import write_text
+from ..atomic import commit_files, write_text
 from ..errors import ExportError, GsrError, InputError
 from .result import Result
 
@@ -133,27 +133,14 @@ def read_manifest(out_dir: str | os.PathLike[str]) -> dict[str, dict[str, str]]:
             and isinstance(entry, dict) and all(isinstance(entry.get(k), str) for k in ("format", "stem", "sha256"))}
 
 
-def clear_exports(out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Remove the files the previous run's manifest lists that still hold what gsr wrote (same SHA-256; a file
-    changed since is kept) and the manifest; returns the removed paths. Symlinks are never followed."""
-    out = Path(out_dir)
-    removed = []
-    for name, entry in read_manifest(out).items():
-        path = out / name
-        if not path.is_symlink() and path.is_file() and _sha256(path) == entry["sha256"]:
-            path.unlink()
-            removed.append(path)
-    (out / MANIFEST).unlink(missing_ok=True)
-    return removed
-
-
 def export(result: Any, out_dir: str | os.PathLike[str], formats: Sequence[str] | None = None,
            stem: str | None = None) -> list[Path]:
     """Export ``result`` into ``out_dir`` in ``formats`` (None: every available format for its kind).
 
     All or nothing: the exporters write into a staging directory inside ``out_dir``; only when every
-    one has succeeded are the previous run's exports removed and the new files moved into place (each by
-    an atomic rename) and listed in the manifest. Returns their paths.
+    one has succeeded are the new files and their manifest moved into place as one transaction
+    (:func:`gsr_cad.atomic.commit_files`: all renames or none, signals held), and then the previous run's
+    exports that were not replaced removed. Returns their paths.
     """
     names = default_formats(result.kind) if formats is None else check_formats(formats, result.kind)
     stem = stem or result.kind
@@ -167,16 +154,19 @@ def export(result: Any, out_dir: str | os.PathLike[str], formats: Sequence[str] 
         produced: list[tuple[str, Path]] = []
         for name in names:
             produced += [(name, p) for p in registry()[name].exporter.export(result, staging, stem)]
-        clear_exports(out)
-        final, entries = [], {}
-        for name, path in produced:
-            target = out / path.relative_to(staging)
-            entries[target.name] = {"format": name, "stem": stem, "sha256": _sha256(path)}
-            os.replace(path, target)
-            final.append(target)
+        previous = read_manifest(out)
+        entries = {p.name: {"format": name, "stem": stem, "sha256": _sha256(p)} for name, p in produced}
+        files = [p for _, p in produced]
         if entries:
-            write_text(out / MANIFEST, json.dumps({"version": 1, "files": entries}, indent=1) + "\n")
-        return final
+            files.append(write_text(staging / MANIFEST, json.dumps({"version": 1, "files": entries}, indent=1) + "\n"))
+        elif previous:
+            (out / MANIFEST).unlink(missing_ok=True)
+        final = commit_files(staging, out, files)
+        for name, entry in previous.items():  # the previous run's exports this run did not replace
+            path = out / name
+            if name not in entries and not path.is_symlink() and path.is_file() and _sha256(path) == entry["sha256"]:
+                path.unlink()
+        return [p for p in final if p.name != MANIFEST]
     except OSError as exc:
         raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
     finally:
