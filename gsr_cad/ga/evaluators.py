@@ -32,10 +32,12 @@ _WORKER_FN: Callable[[Any], Any] | None = None
 
 
 def _install_worker(fn: Callable[[Any], Any]) -> None:
-    """Pool initializer: keep ``fn`` in the worker (shipped once, not with every chunk); leave Ctrl-C to the parent."""
+    """Pool initializer: keep ``fn`` in the worker (shipped once, not with every chunk); leave Ctrl-C to the parent
+    and let SIGTERM end the worker (a forked worker must not keep the parent's handlers)."""
     global _WORKER_FN
     _WORKER_FN = fn
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _call_worker_chunk(items: Sequence[Any]) -> list:
