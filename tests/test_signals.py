@@ -3,6 +3,8 @@ and consistent or untouched; Ctrl-C and SIGTERM are answered with a "stopping...
 
 from __future__ import annotations
 
+import contextlib
+import os
 import signal
 import threading
 import time
@@ -36,11 +38,25 @@ def _argv(kind: str, d: Path, out: Path) -> list:
     return [kind, path, "-o", out, "--seed", "1", *flags]
 
 
+def _kill_children_of_run(marker: str) -> None:
+    """SIGKILL, by pid, the processes this test started whose command line names ``marker`` (its OUT)."""
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if marker in cmdline and int(entry.name) != os.getpid():
+                with contextlib.suppress(OSError):
+                    os.kill(int(entry.name), signal.SIGKILL)
+
+
 class Watched:
     """A running gsr process whose stderr is collected line by line."""
 
     def __init__(self, argv: list, cwd: Path) -> None:
         self.proc = popen(argv, cwd)
+        self.marker = str(argv[argv.index("-o") + 1])  # this run's own OUT path: names its processes
         self.err: list[str] = []
         self.out = ""
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -61,10 +77,19 @@ class Watched:
     def finish(self, timeout: float = 120.0) -> float:
         """Wait for the exit; returns the seconds it took."""
         started = time.monotonic()
-        self.out = self.proc.stdout.read()
         self.proc.wait(timeout=timeout)
-        self._reader.join(5)
-        return time.monotonic() - started
+        took = time.monotonic() - started
+        chunks: list[str] = []
+        drain = threading.Thread(target=lambda: chunks.append(self.proc.stdout.read()), daemon=True)
+        drain.start()
+        drain.join(10)
+        self._reader.join(10)
+        left = drain.is_alive() or self._reader.is_alive()  # a child still holds the pipes: it outlived gsr
+        if left:
+            _kill_children_of_run(self.marker)
+        assert not left, "a child process of gsr is still running after it exited"
+        self.out = "".join(chunks)
+        return took
 
 
 def _check_out(out: Path, kind: str, killed: bool) -> str:

@@ -91,6 +91,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     return code
 
 
+def _report(exc: Exception) -> int:
+    """The one ``error:`` line for ``exc`` and the exit code."""
+    if signals.interrupted():  # a library interrupted mid-import or mid-call often turns Ctrl-C into its own error
+        message, code = "interrupted", 130
+    elif isinstance(exc, UsageError):
+        message, code = str(exc), 2
+    elif isinstance(exc, GsrError):
+        message, code = _one_line(exc), 2
+    elif isinstance(exc, MemoryError):
+        message, code = "out of memory (try a smaller input or --max-target-points)", 2
+    elif isinstance(exc, OSError):
+        message, code = _os_error(exc), 2
+    elif isinstance(exc, (RecursionError, OverflowError)):
+        message, code = f"input too large or too deeply nested ({_one_line(exc)})", 2
+    else:
+        if os.environ.get("GSR_DEBUG") == "1":
+            raise exc
+        message, code = (f"internal error: {type(exc).__name__}: {_one_line(exc)} (GSR_DEBUG=1 shows the "
+                         "traceback; please report it)"), 1
+    print(f"error: {message}", file=sys.stderr)
+    return code
+
+
 def _main(argv: Sequence[str] | None) -> int:
     with warnings.catch_warnings(), signals.handled(), contextlib.ExitStack() as stack:
         warnings.showwarning = _show_warning
@@ -105,31 +128,8 @@ def _main(argv: Sequence[str] | None) -> int:
                 parser.print_help()
                 return 2
             return int(args.run(args) or 0)
-        except UsageError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        except GsrError as exc:
-            print(f"error: {_one_line(exc)}", file=sys.stderr)
-            return 2
         except KeyboardInterrupt:
-            if os.environ.get("GSR_DEBUG") == "1":
-                import traceback
-
-                traceback.print_exc()
             print("error: interrupted", file=sys.stderr)
             return 130
-        except MemoryError:
-            print("error: out of memory (try a smaller input or --max-target-points)", file=sys.stderr)
-            return 2
-        except OSError as exc:
-            print(f"error: {_os_error(exc)}", file=sys.stderr)
-            return 2
-        except (RecursionError, OverflowError) as exc:
-            print(f"error: input too large or too deeply nested ({_one_line(exc)})", file=sys.stderr)
-            return 2
         except Exception as exc:
-            if os.environ.get("GSR_DEBUG") == "1":
-                raise
-            print(f"error: internal error: {type(exc).__name__}: {_one_line(exc)} (GSR_DEBUG=1 shows the "
-                  "traceback; please report it)", file=sys.stderr)
-            return 1
+            return _report(exc)

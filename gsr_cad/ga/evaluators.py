@@ -7,6 +7,7 @@ process pool or a dask cluster; results never depend on which (the problem's cos
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import math
 import multiprocessing
 import os
@@ -31,10 +32,12 @@ _WORKER_FN: Callable[[Any], Any] | None = None
 
 
 def _install_worker(fn: Callable[[Any], Any]) -> None:
-    """Pool initializer: keep ``fn`` in the worker (shipped once, not with every chunk); leave Ctrl-C to the parent."""
+    """Pool initializer: keep ``fn`` in the worker (shipped once, not with every chunk); leave Ctrl-C to the parent
+    and let SIGTERM end the worker (a forked worker must not keep the parent's handlers)."""
     global _WORKER_FN
     _WORKER_FN = fn
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _call_worker_chunk(items: Sequence[Any]) -> list:
@@ -98,12 +101,18 @@ class ProcessPoolEvaluator:
             raise
 
     def close(self, wait: bool = True) -> None:
-        """Shut the pool down (pending chunks are cancelled); the next call starts a new one."""
+        """Shut the pool down (pending chunks are cancelled); the next call starts a new one. Without
+        ``wait`` (after Ctrl-C or a failure) the workers are terminated at once: their costs are pure, and a
+        worker left waiting for a parent that exits would live on."""
         if self._finalizer is not None:
             self._finalizer.detach()
             self._finalizer = None
         if self._pool is not None:
+            workers = [] if wait else list((getattr(self._pool, "_processes", None) or {}).values())
             self._pool.shutdown(wait=wait, cancel_futures=True)
+            for process in workers:
+                with contextlib.suppress(OSError, AttributeError):
+                    process.terminate()
             self._pool = None
             self._fn = None
 
