@@ -1,0 +1,80 @@
+"""Blender side of the crease tests in tests/test_blender_subsurf.py: the Subdivision Surface modifier on
+meshes with edge creases.
+
+Usage: blender -b --factory-startup --python subsurf_crease_cases.py -- CASES.json OUT.npz
+
+CASES.json: {"meshes": {name: {"vertices": [[x, y, z], ...], "faces": [[i, j, ...], ...],
+"creases": [[a, b, crease], ...]}}, "runs": [[name, levels, use_limit_surface, boundary_smooth], ...]}, each
+crease Blender's edge crease in [0, 1] on the edge of vertices a and b. OUT.npz holds for every mesh
+``NAME/control/vertices|sizes|corners|creases`` (creases: ``(a, b, crease)`` rows as Blender stored them) and
+for every run ``NAME/LEVELS/LIMIT/BOUNDARY/vertices|sizes|corners`` of the evaluated mesh.
+"""
+
+import json
+import sys
+
+import bpy
+import numpy as np
+
+
+def mesh_arrays(mesh):
+    """Vertices (n, 3), face sizes and the flat corner list of a Blender mesh."""
+    verts = np.empty(3 * len(mesh.vertices))
+    mesh.vertices.foreach_get("co", verts)
+    sizes = np.empty(len(mesh.polygons), dtype=np.int64)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    starts = np.empty(len(mesh.polygons), dtype=np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    loops = np.empty(len(mesh.loops), dtype=np.int64)
+    mesh.loops.foreach_get("vertex_index", loops)
+    corners = np.concatenate([loops[s:s + n] for s, n in zip(starts, sizes, strict=True)]) if len(sizes) else loops
+    return verts.reshape(-1, 3), sizes, corners
+
+
+def make_object(name, spec):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(v) for v in spec["vertices"]], [], [tuple(f) for f in spec["faces"]])
+    mesh.update()
+    index = {tuple(sorted(e.vertices)): e.index for e in mesh.edges}
+    for a, b, crease in spec["creases"]:
+        mesh.edges[index[tuple(sorted((a, b)))]].crease = crease
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:]
+    cases_path, out_path = argv
+    with open(cases_path) as fh:
+        cases = json.load(fh)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    out = {}
+    objects = {}
+    for name, spec in cases["meshes"].items():
+        obj = make_object(name, spec)
+        objects[name] = obj
+        for key, arr in zip(("vertices", "sizes", "corners"), mesh_arrays(obj.data), strict=True):
+            out[f"{name}/control/{key}"] = arr
+        out[f"{name}/control/creases"] = np.array([[*e.vertices, e.crease] for e in obj.data.edges if e.crease > 0],
+                                                  dtype=np.float64).reshape(-1, 3)
+    for name, levels, limit, boundary in cases["runs"]:
+        obj = objects[name]
+        obj.modifiers.clear()
+        mod = obj.modifiers.new("subsurf", "SUBSURF")
+        mod.subdivision_type = "CATMULL_CLARK"
+        mod.levels = levels
+        mod.use_limit_surface = limit
+        mod.quality = 10
+        mod.boundary_smooth = boundary
+        mod.use_creases = True
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        evaluated = obj.evaluated_get(depsgraph)
+        mesh = evaluated.to_mesh()
+        for key, arr in zip(("vertices", "sizes", "corners"), mesh_arrays(mesh), strict=True):
+            out[f"{name}/{levels}/{int(limit)}/{boundary}/{key}"] = arr
+        evaluated.to_mesh_clear()
+    np.savez(out_path, **out)
+
+
+main()
