@@ -86,7 +86,6 @@ def test_blender_boundary_modes_differ(blender, name):
 # precision only with that map). Only interior edges are creased: boundary edges are infinitely sharp anyway,
 # and Blender alone also sharpens a vertex with exactly two edges by the smaller crease of the two.
 
-CREASE_SCRIPT = Path(__file__).parent / "blender" / "subsurf_crease_cases.py"
 CREASE_KINDS = {"any": (0.0, 0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 10.0), "semi": (0.0, 0.0, 0.5, 1.0, 1.5, 2.0, 2.5)}
 CREASE_RUNS = [(name, kind, levels, limit, boundary) for name in MESHES for kind in (*CREASE_KINDS, "rims")
                for levels in (1, 2, 3) for limit in (False, True)
@@ -123,7 +122,7 @@ def blender_creased(tmp_path_factory) -> dict[str, np.ndarray]:
                                         "creases": [[a, b, float(np.sqrt(s / 10.0))] for (a, b), s in mesh.creases.items()]}
     runs = [(f"{name}-{kind}", levels, limit, boundary) for name, kind, levels, limit, boundary in CREASE_RUNS]
     (work / "cases.json").write_text(json.dumps({"meshes": meshes, "runs": runs}))
-    run_blender(CREASE_SCRIPT, [work / "cases.json", work / "out.npz"], timeout=600)
+    run_blender(SCRIPT, [work / "cases.json", work / "out.npz"], timeout=600)
     with np.load(work / "out.npz") as data:
         return dict(data)
 
