@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_mesh_ops import assert_sound
+from test_mesh_ops import random_history
 
 from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError, InputError, OpError
@@ -118,17 +118,8 @@ def test_subdivision_sees_the_op_creases():
 @given(seed=st.integers(0, 2 ** 32 - 1), length=st.integers(1, 10),
        kinds=st.sampled_from(["VELBIFSC", "CL", "CB", "CEI", "CCVF"]))
 def test_random_creased_genomes_stay_sound_and_carry_sharpness(seed, length, kinds):
-    rng = np.random.default_rng(seed)
     state, ops = CUBE, []
-    for _ in range(4 * length):
-        if len(ops) == length:
-            break
-        op = random_op(rng, state, D, kinds)
-        try:
-            after = op.apply(state)
-        except OpError:
-            continue
-        assert_sound(after)
+    for op, state, after in random_history(seed, length, kinds):
         s = after.edge_sharpness  # every crease names an edge of the result
         assert s.shape == (after.topology.n_edges,) and np.all((s >= 0) & (s <= 10))
         assert np.count_nonzero(s) == len(after.creases)
