@@ -1,7 +1,7 @@
 """Catmull-Clark subdivision of polygon meshes (n-gons, boundaries) as sparse matrices.
 
-Everything here depends on connectivity alone, so a :class:`CatmullClark` is built once per
-``(topology_key, levels, boundary)`` and kept in an LRU cache (:func:`get_catmull_clark`): moving
+Everything here depends on connectivity (and edge sharpness) alone, so a :class:`CatmullClark` is built once per
+``(topology_key, levels, boundary)`` (:attr:`PolyMesh.topology_key` includes the creases) and kept in an LRU cache (:func:`get_catmull_clark`): moving
 vertices then costs one sparse product (:attr:`CatmullClark.refine_matrix` or
 :attr:`CatmullClark.limit_matrix` times the ``(n, 3)`` control vertices).
 
@@ -18,7 +18,19 @@ Rules (those of OpenSubdiv's Catmull-Clark with the default options, hence Blend
   (lagrange ``EdgeAndCorner``): a topological corner (a boundary vertex with one face and two
   edges) is infinitely sharp and never moves, in the refinement and in the limit;
 * a vertex no face uses stays where it is (identity row); a non-manifold vertex (two fans of faces
-  meeting at a point, which OpenSubdiv would sharpen) is refused with TopologyError.
+  meeting at a point, which OpenSubdiv would sharpen) is refused with TopologyError;
+* creases (:attr:`PolyMesh.edge_sharpness`, or ``sharpness`` per edge for a Topology) follow OpenSubdiv with
+  its default creasing method, ``CREASE_UNIFORM``, which Blender and lagrange use: a child edge has sharpness
+  ``s - 1`` (at least 0; ``s >= 10`` is infinite and stays). Edge point of a sharp edge: the midpoint (blended
+  ``s : 1 - s`` with the smooth point while ``s < 1``). Vertex point by the number of sharp edges, boundary
+  edges included: 0 or 1 (a dart) smooth, 2 crease ``(u0 + 6 v + u1) / 8``, 3 or more a corner ``v``; where
+  the next level's rule differs, the two rules blend by the mean sharpness of the edges that decay to 0
+  (OpenSubdiv's fractional weight). Blender's crease ``c`` is sharpness ``10 c**2`` (measured); Blender alone
+  also sharpens a vertex with exactly two edges by the smaller sharpness of the two (not done here). Creased
+  limits are exact: where semi-sharp edges remain after the last level the points are refined further (with
+  these rules) until none does; then crease points take ``(u0 + 4 p + u1) / 6``, corners stay and a dart takes
+  its exact stencil (the left eigenvector of its 1-ring's subdivision matrix), where OpenSubdiv's own limit
+  (lagrange's) keeps the last level's rules and the smooth stencil at darts.
 
 Refined order, level by level: vertex points first (in vertex order), then edge points (in
 :class:`~gsr_cad.geometry.topology.Topology` edge order), then face points (in face order). Face ``f``
