@@ -62,6 +62,8 @@ def test_random_and_perturbed_creases():
     assert {op.edge for op in ops} == set(range(12))
     proposed = [random_op(rng, CUBE, D, "C", ranges, crease_edges=[3, 5, 99]).edge for _ in range(50)]
     assert set(proposed) == {3, 5}
+    assert {random_op(rng, CUBE, D, "C", ranges, crease_edges=lambda m: [m.n_faces]).edge for _ in range(9)} == {6}
+    assert random_op(np.random.default_rng(1), CUBE, D, "V", crease_edges=lambda m: 1 / 0).letter == "V"
     assert perturb_op(Crease(2, 10.0), rng, D) == Crease(2, 10.0)
     nudged = [perturb_op(Crease(2, 2.0), rng, D).sharpness for _ in range(50)]
     assert all(0 < s <= 10 for s in nudged) and np.std(nudged) > 0

@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -363,11 +363,13 @@ def _face_inradius(P: list[list[float]], cyc: tuple[int, ...]) -> float:
 
 
 def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
-              ranges: OpRanges = OpRanges(), crease_edges: Sequence[int] | None = None) -> MeshOp:
+              ranges: OpRanges = OpRanges(),
+              crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None) -> MeshOp:
     """A random op for ``mesh``: kind uniform over the letters in ``kinds``, element uniform, parameters
     drawn from ``ranges`` (see :class:`OpRanges`) with ``scale`` the target's bounding-box diagonal.
     A C op picks its edge from ``crease_edges`` (edges of ``mesh`` proposed along the target's feature
-    lines, :mod:`gsr_cad.reconstruct.features`) when some are given. The op may still be invalid for
+    lines, :mod:`gsr_cad.reconstruct.features`, or a function of ``mesh`` giving them, called only for a C
+    op) when some are given. The op may still be invalid for
     ``mesh`` (repair drops it)."""
     letters = [k for k in kinds if k in ALL_OPS_BY_LETTER]
     if not letters or len(letters) != len(kinds):
@@ -392,7 +394,8 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
         size = _face_inradius(view.P, conn.faces[face]) or scale  # a zero-area face: any size
         return Inset(face, float(rng.uniform(*ranges.thickness) * size))
     if kind == "C":
-        edges = [e for e in (crease_edges or ()) if 0 <= e < len(conn.edges)]
+        proposed = crease_edges(mesh) if callable(crease_edges) else crease_edges
+        edges = [e for e in (proposed or ()) if 0 <= e < len(conn.edges)]
         edge = int(edges[int(rng.integers(len(edges)))]) if edges else int(rng.integers(len(conn.edges)))
         if rng.random() < ranges.infinite:
             return Crease(edge, SHARPNESS_INFINITE)
