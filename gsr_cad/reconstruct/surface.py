@@ -68,6 +68,7 @@ from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
+from .features import CreaseProposals
 from .inputs import SurfaceTarget, load_template, surface_target, validate_template
 from .result import Result
 
@@ -150,6 +151,8 @@ class SurfaceProblem:
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
+        self.creases = (CreaseProposals(target.points, target.faces, boundary=config.boundary).edges
+                        if "C" in config.op_kinds else None)
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
@@ -195,7 +198,7 @@ class SurfaceProblem:
     # --- GA protocol -------------------------------------------------------------------------------------
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
         """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
-        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges)
+        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges, self.creases)
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         """The ops that apply (and keep the mesh within ``max_control_faces``), topped up to ``min_ops``."""
@@ -203,7 +206,7 @@ class SurfaceProblem:
         attempts = 0
         while len(kept) < self.config.min_ops and attempts < 50:
             attempts += 1
-            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges)
+            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges, self.creases)
             nxt = self._step(kept, state, op)
             if nxt is not None:
                 kept, state = kept + (op,), nxt
