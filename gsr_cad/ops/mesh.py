@@ -1,5 +1,5 @@
-"""The seven surface modelling ops of the paper (letters V E L B I F S) on a closed polygon mesh, and the
-crease op C (edge sharpness, not in the paper).
+"""The seven surface modelling ops of the paper (letters V E L B I F S) on a closed polygon mesh, the crease
+op C (edge sharpness) and the hole op H (not in the paper).
 
 Each op is a frozen dataclass registered by name around one pure function of
 :mod:`gsr_cad.ops.mesh_kernel`, ``PolyMesh -> PolyMesh``; an op that cannot apply, or would leave a
@@ -36,6 +36,8 @@ face ``f`` having corners ``c_0 .. c_{k-1}``:
   ``segments=1``, ``profile=0.5``). Corners between the edge and its neighbours must lie in
   ``[15, 165]`` degrees and be convex; otherwise Blender builds something else and the op is invalid.
 
+* H ``hole(face_a, face_b)``: removes two facing faces with as many corners and bridges their rims with
+  quads (a through-hole, genus + 1; see :func:`~gsr_cad.ops.mesh_kernel.hole` for the pairing and order).
 * C ``crease(edge, sharpness)``: sets the OpenSubdiv sharpness of an interior edge (``0`` smooth, ``10``
   infinitely sharp; Blender's crease is ``sqrt(sharpness / 10)``); nothing moves or is renumbered.
 
@@ -65,8 +67,8 @@ from .base import Op, register
 from .mesh_conn import mesh_view
 
 __all__ = [
-    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "EdgeLoop", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
-    "TranslateFace", "TranslateVertex", "bevel", "crease", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
+    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "EdgeLoop", "Hole", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
+    "TranslateFace", "TranslateVertex", "bevel", "crease", "hole", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
     "scale", "translate_face", "translate_vertex",
 ]
 
@@ -78,6 +80,7 @@ inset = K.inset
 translate_face = K.translate_face
 scale = K.scale
 crease = K.crease
+hole = K.hole
 
 
 def _element(value, what: str) -> int:
@@ -124,7 +127,7 @@ def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
-_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "delta": _vector, "distance": _number,
+_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "face_a": _element, "face_b": _element, "delta": _vector, "distance": _number,
                  "offset": _positive, "thickness": _positive, "factor": _positive, "sharpness": _sharpness}
 """How :class:`MeshOp` normalises each op field, by field name (InputError on a malformed value)."""
 
@@ -280,12 +283,29 @@ class Crease(MeshOp):
         return f"crease edge {self.edge} ({sharp})"
 
 
+@register
+@dataclasses.dataclass(frozen=True)
+class Hole(MeshOp):
+    """H: open a through-hole between facing faces ``face_a`` and ``face_b``."""
+
+    name: ClassVar[str] = "hole"
+    letter: ClassVar[str] = "H"
+    face_a: int
+    face_b: int
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return hole(state, self.face_a, self.face_b)
+
+    def describe(self) -> str:
+        return f"hole through faces {self.face_a} and {self.face_b}"
+
+
 OPS_BY_LETTER: dict[str, type[MeshOp]] = {
     cls.letter: cls for cls in (TranslateVertex, Extrude, EdgeLoop, Bevel, Inset, TranslateFace, Scale)
 }
 """The paper's seven ops."""
-ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease}
-"""Every surface op :func:`random_op` can draw: the paper's and C."""
+ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "H": Hole}
+"""Every surface op :func:`random_op` can draw: the paper's, C and H."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -300,7 +320,8 @@ class OpRanges:
     * B: ``offset`` uniform in ``offset`` times the shortest other edge at the edge's ends (an offset
       slides along those edges, so a longer one is always invalid);
     * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance;
-    * C: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``.
+    * C: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``;
+    * H: the first face uniform, the second the nearest one facing it (:func:`_hole_faces`).
     """
 
     move: float = 0.1
@@ -362,6 +383,26 @@ def _face_inradius(P: list[list[float]], cyc: tuple[int, ...]) -> float:
     return best if math.isfinite(best) else 0.0
 
 
+def _hole_faces(view, face: int) -> tuple[int, int]:
+    """``face`` and its partner for a hole: the nearest face (by centroid) with as many corners, no shared
+    vertex and no edge to ``face``'s vertices that faces it across the solid (``face`` twice, an invalid op,
+    when none does)."""
+    conn = view.conn
+    cyc = conn.faces[face]
+    corners = set(cyc)
+    mine = corners | {v for u, v in conn.half if u in corners}
+    P = view.P
+    c = [sum(P[i][j] for i in cyc) / len(cyc) for j in range(3)]
+    best, partner = math.inf, face
+    for g, other in enumerate(conn.faces):
+        if len(other) != len(cyc) or mine.intersection(other) or not K.facing(view, face, g):
+            continue
+        d = math.dist(c, [sum(P[i][j] for i in other) / len(other) for j in range(3)])
+        if d < best:
+            best, partner = d, g
+    return face, partner
+
+
 def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
               ranges: OpRanges = OpRanges(),
               crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None) -> MeshOp:
@@ -384,6 +425,8 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
         return TranslateVertex(vertex, tuple((rng.uniform(-1.0, 1.0, 3) * ranges.move * scale).tolist()))
     view = mesh_view(mesh)  # the apply that follows reuses it
     conn = view.conn
+    if kind == "H":
+        return Hole(*_hole_faces(view, int(rng.integers(conn.n_faces))))
     if kind in "EIF":
         face = int(rng.integers(conn.n_faces))
         if kind == "E":
@@ -412,7 +455,7 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
 
     Lengths (V delta per axis, E and F distances) move by ``N(0, (rel * scale)^2)``; positive amounts
     (B offset, I thickness, a semi-sharp C sharpness, at most 10) are multiplied by ``exp(N(0, log_sigma^2))``
-    and the S factor by ``exp(N(0, rel^2))``, so they stay positive. L and an infinitely sharp C come back
+    and the S factor by ``exp(N(0, rel^2))``, so they stay positive. L, H and an infinitely sharp C come back
     unchanged.
     """
     if not (math.isfinite(scale) and scale > 0.0):
@@ -432,7 +475,7 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
         return Inset(op.face, op.thickness * float(np.exp(rng.normal(0.0, log_sigma))))
     if isinstance(op, Scale):
         return Scale(op.factor * float(np.exp(rng.normal(0.0, rel))))
-    if isinstance(op, EdgeLoop):
+    if isinstance(op, (EdgeLoop, Hole)):
         return op
     if isinstance(op, Crease):
         if op.sharpness >= SHARPNESS_INFINITE:

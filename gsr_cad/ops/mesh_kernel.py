@@ -350,6 +350,63 @@ def crease(mesh: PolyMesh, edge: int, sharpness: float) -> PolyMesh:
     return out
 
 
+# --- H: hole ---------------------------------------------------------------------------------------------
+
+def facing(view: MeshView, face_a: int, face_b: int) -> bool:
+    """Whether faces ``a`` and ``b`` of the view's mesh face each other across the solid: each lies behind
+    the other (``n_a . (c_b - c_a) < 0 < n_b . (c_b - c_a)``) and their normals are opposed (dot < -0.5)."""
+    faces = view.conn.faces
+    na, nb = _unit(_face_newell(view, face_a)), _unit(_face_newell(view, face_b))
+    if na is None or nb is None:
+        return False
+    P = view.P
+    ca = [sum(P[c][j] for c in faces[face_a]) / len(faces[face_a]) for j in range(3)]
+    cb = [sum(P[c][j] for c in faces[face_b]) / len(faces[face_b]) for j in range(3)]
+    d = _sub(cb, ca)
+    return _dot(na, d) < 0.0 < _dot(nb, d) and _dot(na, nb) < -0.5
+
+
+def hole(mesh: PolyMesh, face_a: int, face_b: int) -> PolyMesh:
+    """H: a through-hole: faces ``a`` and ``b`` (facing each other, as many corners, no shared vertex) are
+    removed and their rims bridged by quads (Blender's bridge edge loops between the two faces).
+
+    Corner ``i`` of ``a`` pairs with corner ``r - i`` of ``b`` (``b`` runs the other way round the tunnel),
+    ``r`` the rotation with the least sum of squared distances between paired corners (the first on ties);
+    bridge quad ``i`` is ``(a_i, a_{i+1}, b_{r-i-1}, b_{r-i})``. Quad 0 takes face ``a``'s index, quad 1 face
+    ``b``'s, the others are appended in order; vertices keep their indices. The genus grows by one.
+    """
+    what = f"hole {face_a} {face_b}"
+    view = mesh_view(mesh)
+    conn = view.conn
+    _index(face_a, conn.n_faces, what, "face")
+    _index(face_b, conn.n_faces, what, "face")
+    A, B = conn.faces[face_a], conn.faces[face_b]
+    k = len(A)
+    if face_a == face_b or len(B) != k or set(A) & set(B):
+        raise OpError(f"{what}: the faces must differ, have as many corners and share no vertex")
+    if not facing(view, face_a, face_b):
+        raise OpError(f"{what}: the faces do not face each other across the solid")
+    P = view.P
+
+    def cost(r: int) -> float:
+        return sum(sum((P[A[i]][j] - P[B[(r - i) % k]][j]) ** 2 for j in range(3)) for i in range(k))
+
+    r = min(range(k), key=cost)
+    quads = [(A[i], A[(i + 1) % k], B[(r - i - 1) % k], B[(r - i) % k]) for i in range(k)]
+    half = conn.half
+    for i in range(k):
+        u, v = A[i], B[(r - i) % k]
+        if (u, v) in half or (v, u) in half:
+            raise OpError(f"{what}: vertices {u} and {v} are already joined by an edge")
+    faces = list(conn.faces)
+    faces[face_a], faces[face_b] = quads[0], quads[1]
+    faces.extend(quads[2:])
+    touched = [face_a, face_b, *range(conn.n_faces, conn.n_faces + k - 2)]
+    newell = view.newell + [None] * (k - 2)
+    newell[face_a] = newell[face_b] = None
+    return _finish(what, view, list(P), faces, touched, {}, _diagonal(view), newell, (), view.bounds)
+
+
 # --- E, I: a face on new vertices plus a ring of quads -----------------------------------------------------
 
 def _cap_and_ring(what: str, view: MeshView, face: int, new_points: list[list[float]], ref: Vec | None,
