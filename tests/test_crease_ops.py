@@ -14,8 +14,8 @@ from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError, InputError, OpError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import get_catmull_clark
-from gsr_cad.ops.mesh import (ALL_OPS_BY_LETTER, OPS_BY_LETTER, Crease, OpRanges, bevel, crease, edge_loop, extrude,
-                              inset, perturb_op, random_op, scale, translate_face, translate_vertex)
+from gsr_cad.ops.mesh import (ALL_OPS_BY_LETTER, OPS_BY_LETTER, Crease, CreaseRim, OpRanges, bevel, crease, crease_rim,
+                              edge_loop, extrude, inset, perturb_op, random_op, scale, translate_face, translate_vertex)
 
 CUBE = unit_cube()
 D = CUBE.diagonal
@@ -41,6 +41,26 @@ def test_crease_op_sets_and_clears_sharpness():
         crease(open_box, _edge(open_box, 4, 5), 1.0)
 
 
+def test_crease_rim_creases_a_face_outline():
+    m = crease_rim(CUBE, 5, 10.0)
+    assert m.creases == TOP
+    assert crease_rim(m, 5, 0.0).creases == {}
+    op = CreaseRim(5, 2.0)
+    assert genome_mod.from_json([op.to_json()]) == (op,) and op.letter == "R" and "sharpness 2" in op.describe()
+    assert op.apply(CUBE).creases == dict.fromkeys(TOP, 2.0)
+    open_box = PolyMesh.from_faces(CUBE.vertices, CUBE.faces[:5])
+    assert len(crease_rim(open_box, 4, 1.0).creases) == 4  # the bottom: all four edges are interior
+    single = PolyMesh.from_faces(CUBE.vertices[:4], [(0, 1, 3, 2)])
+    with pytest.raises(OpError, match="no interior edge"):
+        crease_rim(single, 0, 1.0)
+    with pytest.raises(OpError):
+        crease_rim(CUBE, 6, 1.0)
+    rng = np.random.default_rng(2)
+    drawn = [random_op(rng, CUBE, D, "R") for _ in range(100)]
+    assert {o.face for o in drawn} == set(range(6)) and any(o.sharpness == 10.0 for o in drawn)
+    assert perturb_op(CreaseRim(1, 1.0), rng, D).face == 1
+
+
 def test_crease_op_json_and_checks():
     op = Crease(3, 10)
     assert op.to_json() == {"op": "crease", "edge": 3, "sharpness": 10.0}
@@ -49,7 +69,7 @@ def test_crease_op_json_and_checks():
     for bad in ({"edge": -1, "sharpness": 1}, {"edge": 1, "sharpness": 12}, {"edge": 1, "sharpness": "x"}):
         with pytest.raises(InputError):
             Crease(**bad)
-    assert set(ALL_OPS_BY_LETTER) == set(OPS_BY_LETTER) | {"C", "H"}
+    assert set(ALL_OPS_BY_LETTER) == set(OPS_BY_LETTER) | {"C", "R", "H"}
 
 
 def test_random_and_perturbed_creases():
@@ -118,7 +138,7 @@ def test_subdivision_sees_the_op_creases():
 
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), length=st.integers(1, 10),
-       kinds=st.sampled_from(["VELBIFSC", "CL", "CB", "CEI", "CCVF"]))
+       kinds=st.sampled_from(["VELBIFSCR", "CL", "CB", "CEI", "CCVF", "RLB"]))
 def test_random_creased_genomes_stay_sound_and_carry_sharpness(seed, length, kinds):
     state, ops = CUBE, []
     for op, state, after in random_history(seed, length, kinds):
@@ -128,6 +148,10 @@ def test_random_creased_genomes_stay_sound_and_carry_sharpness(seed, length, kin
         if isinstance(op, Crease):
             u, v = state.topology.edges[op.edge]
             assert after.creases.get((min(u, v), max(u, v)), 0.0) == op.sharpness
+        elif isinstance(op, CreaseRim):
+            cyc = state.faces[op.face]
+            for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+                assert after.creases.get((min(u, v), max(u, v)), 0.0) == op.sharpness
         elif op.letter in "VFS":
             assert after.creases == state.creases
         else:  # E, L, B, I never invent sharpness

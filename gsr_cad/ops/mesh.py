@@ -1,5 +1,5 @@
 """The seven surface modelling ops of the paper (letters V E L B I F S) on a closed polygon mesh, the crease
-op C (edge sharpness) and the hole op H (not in the paper).
+ops C and R (edge sharpness) and the hole op H (not in the paper).
 
 Each op is a frozen dataclass registered by name around one pure function of
 :mod:`gsr_cad.ops.mesh_kernel`, ``PolyMesh -> PolyMesh``; an op that cannot apply, or would leave a
@@ -40,6 +40,8 @@ face ``f`` having corners ``c_0 .. c_{k-1}``:
   quads (a through-hole, genus + 1; see :func:`~gsr_cad.ops.mesh_kernel.hole` for the pairing and order).
 * C ``crease(edge, sharpness)``: sets the OpenSubdiv sharpness of an interior edge (``0`` smooth, ``10``
   infinitely sharp; Blender's crease is ``sqrt(sharpness / 10)``); nothing moves or is renumbered.
+  R ``crease_rim(face, sharpness)``: the same on every interior edge of a face's rim (one designer action
+  for a sharp cap).
 
 Creases are carried through the other ops (:attr:`PolyMesh.creases` by vertex pair): an edge whose two
 vertices still share an edge keeps its sharpness (old vertices keep their indices). E: each cap edge also
@@ -67,8 +69,8 @@ from .base import Op, register
 from .mesh_conn import mesh_view
 
 __all__ = [
-    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "EdgeLoop", "Hole", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
-    "TranslateFace", "TranslateVertex", "bevel", "crease", "hole", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
+    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "CreaseRim", "EdgeLoop", "Hole", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
+    "TranslateFace", "TranslateVertex", "bevel", "crease", "crease_rim", "hole", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
     "scale", "translate_face", "translate_vertex",
 ]
 
@@ -80,6 +82,7 @@ inset = K.inset
 translate_face = K.translate_face
 scale = K.scale
 crease = K.crease
+crease_rim = K.crease_rim
 hole = K.hole
 
 
@@ -125,6 +128,10 @@ def _sharpness(value, what: str) -> float:
 
 def _fmt(x: float) -> str:
     return f"{x:.6g}"
+
+
+def _sharp_text(s: float) -> str:
+    return "infinitely sharp" if s >= SHARPNESS_INFINITE else f"sharpness {_fmt(s)}"
 
 
 _FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "face_a": _element, "face_b": _element, "delta": _vector, "distance": _number,
@@ -279,8 +286,24 @@ class Crease(MeshOp):
         return crease(state, self.edge, self.sharpness)
 
     def describe(self) -> str:
-        sharp = "infinitely sharp" if self.sharpness >= SHARPNESS_INFINITE else f"sharpness {_fmt(self.sharpness)}"
-        return f"crease edge {self.edge} ({sharp})"
+        return f"crease edge {self.edge} ({_sharp_text(self.sharpness)})"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class CreaseRim(MeshOp):
+    """R: set the sharpness of the interior edges around face ``face``."""
+
+    name: ClassVar[str] = "crease_rim"
+    letter: ClassVar[str] = "R"
+    face: int
+    sharpness: float
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return crease_rim(state, self.face, self.sharpness)
+
+    def describe(self) -> str:
+        return f"crease the rim of face {self.face} ({_sharp_text(self.sharpness)})"
 
 
 @register
@@ -304,8 +327,8 @@ OPS_BY_LETTER: dict[str, type[MeshOp]] = {
     cls.letter: cls for cls in (TranslateVertex, Extrude, EdgeLoop, Bevel, Inset, TranslateFace, Scale)
 }
 """The paper's seven ops."""
-ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "H": Hole}
-"""Every surface op :func:`random_op` can draw: the paper's, C and H."""
+ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "R": CreaseRim, "H": Hole}
+"""Every surface op :func:`random_op` can draw: the paper's, C, R and H."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -320,7 +343,7 @@ class OpRanges:
     * B: ``offset`` uniform in ``offset`` times the shortest other edge at the edge's ends (an offset
       slides along those edges, so a longer one is always invalid);
     * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance;
-    * C: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``;
+    * C, R: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``;
     * H: the first face uniform, the second the nearest one facing it (:func:`_hole_faces`).
     """
 
@@ -436,13 +459,14 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
             return TranslateFace(face, float(rng.uniform(-1.0, 1.0) * ranges.face_move * scale))
         size = _face_inradius(view.P, conn.faces[face]) or scale  # a zero-area face: any size
         return Inset(face, float(rng.uniform(*ranges.thickness) * size))
-    if kind == "C":
+    if kind in "CR":
+        sharpness = (SHARPNESS_INFINITE if rng.random() < ranges.infinite else float(rng.uniform(*ranges.sharpness)))
+        if kind == "R":
+            return CreaseRim(int(rng.integers(conn.n_faces)), sharpness)
         proposed = crease_edges(mesh) if callable(crease_edges) else crease_edges
         edges = [e for e in (proposed or ()) if 0 <= e < len(conn.edges)]
         edge = int(edges[int(rng.integers(len(edges)))]) if edges else int(rng.integers(len(conn.edges)))
-        if rng.random() < ranges.infinite:
-            return Crease(edge, SHARPNESS_INFINITE)
-        return Crease(edge, float(rng.uniform(*ranges.sharpness)))
+        return Crease(edge, sharpness)
     edge = int(rng.integers(len(conn.edges)))
     if kind == "L":
         return EdgeLoop(edge)
@@ -477,10 +501,11 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
         return Scale(op.factor * float(np.exp(rng.normal(0.0, rel))))
     if isinstance(op, (EdgeLoop, Hole)):
         return op
-    if isinstance(op, Crease):
+    if isinstance(op, (Crease, CreaseRim)):
         if op.sharpness >= SHARPNESS_INFINITE:
             return op
-        return Crease(op.edge, min(op.sharpness * float(np.exp(rng.normal(0.0, log_sigma))), SHARPNESS_INFINITE))
+        return dataclasses.replace(op, sharpness=min(op.sharpness * float(np.exp(rng.normal(0.0, log_sigma))),
+                                                     SHARPNESS_INFINITE))
     raise InputError(f"perturb_op knows only surface ops, got {type(op).__name__}")
 
 

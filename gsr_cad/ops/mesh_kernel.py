@@ -330,24 +330,48 @@ def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
 
 # --- C: crease ------------------------------------------------------------------------------------------
 
+def _with_sharpness(view: MeshView, pairs: list[tuple[int, int]], sharpness: float) -> PolyMesh:
+    """The view's mesh with ``sharpness`` on the sorted vertex ``pairs`` (same positions and connectivity)."""
+    mesh = view.mesh
+    creases = mesh.creases
+    creases.update(dict.fromkeys(pairs, sharpness))
+    new = sorted_creases(np.array(list(creases), dtype=np.int64), np.array(list(creases.values())))
+    out = PolyMesh._trusted(mesh.vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key, new)
+    remember_view(MeshView(out, view.P, view.newell, view.conn, view.bounds))
+    return out
+
+
+def _check_sharpness(what: str, sharpness: float) -> None:
+    if not 0.0 <= sharpness <= SHARPNESS_INFINITE:
+        raise OpError(f"{what}: the sharpness must lie in [0, {SHARPNESS_INFINITE:g}], got {sharpness!r}")
+
+
 def crease(mesh: PolyMesh, edge: int, sharpness: float) -> PolyMesh:
     """C: set the sharpness of interior edge ``edge`` (``0`` smooth, ``10`` infinitely sharp; OpenSubdiv's
     meaning). Positions and connectivity stay; a boundary edge (always sharp) is refused."""
     what = f"crease {edge}"
-    if not 0.0 <= sharpness <= SHARPNESS_INFINITE:
-        raise OpError(f"{what}: the sharpness must lie in [0, {SHARPNESS_INFINITE:g}], got {sharpness!r}")
+    _check_sharpness(what, sharpness)
     view = mesh_view(mesh)
     conn = view.conn
     _index(edge, len(conn.edges), what, "edge")
     u, v = conn.edges[edge]
     if (v, u) not in conn.half:
         raise OpError(f"{what}: the edge is on the boundary (always sharp)")
-    creases = mesh.creases
-    creases[(u, v) if u < v else (v, u)] = sharpness
-    new = sorted_creases(np.array(list(creases), dtype=np.int64), np.array(list(creases.values())))
-    out = PolyMesh._trusted(mesh.vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key, new)
-    remember_view(MeshView(out, view.P, view.newell, conn, view.bounds))
-    return out
+    return _with_sharpness(view, [(u, v) if u < v else (v, u)], sharpness)
+
+
+def crease_rim(mesh: PolyMesh, face: int, sharpness: float) -> PolyMesh:
+    """R: set the sharpness of every interior edge of face ``face``'s rim (Blender: select the face, set the
+    crease of its edges). A face with no interior edge is refused."""
+    what = f"crease_rim {face}"
+    _check_sharpness(what, sharpness)
+    view = mesh_view(mesh)
+    conn = view.conn
+    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
+    pairs = [(u, v) if u < v else (v, u) for u, v in zip(cyc, cyc[1:] + cyc[:1]) if (v, u) in conn.half]
+    if not pairs:
+        raise OpError(f"{what}: the face has no interior edge")
+    return _with_sharpness(view, pairs, sharpness)
 
 
 # --- H: hole ---------------------------------------------------------------------------------------------
