@@ -207,8 +207,8 @@ class SurfaceConfig:
         for field, allowed in choices.items():
             _check(self, (field,), allowed.__contains__, f"be one of {', '.join(allowed)}")
         kinds = self.op_kinds
-        if not isinstance(kinds, str) or not kinds or set(kinds) - set("VELBIFSC") or len(set(kinds)) != len(kinds):
-            raise ConfigError(f"op-kinds must be distinct letters from VELBIFSC, not {kinds!r}")
+        if not isinstance(kinds, str) or not kinds or set(kinds) - set("VELBIFSCRH") or len(set(kinds)) != len(kinds):
+            raise ConfigError(f"op-kinds must be distinct letters from VELBIFSCRH, not {kinds!r}")
         _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
