@@ -71,6 +71,7 @@ from .config import SurfaceConfig
 from .features import CreaseProposals
 from .inputs import SurfaceTarget, load_template, surface_target, validate_template
 from .result import Result
+from .templates import fitted_template, genus_metrics, target_genus
 
 CUBE_LIMIT_HALF = 34.0 / 81.0
 """Half-extent of the limit surface of a unit cube (its face centres): a cube of side ``s`` has a limit
@@ -100,9 +101,13 @@ def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
 
 def make_template(template: str | os.PathLike[str] | PolyMesh | None, target: SurfaceTarget,
                   config: SurfaceConfig) -> PolyMesh:
-    """``"cube"`` (or None): :func:`box_template`; a PolyMesh or a mesh file: checked to be a valid quad mesh."""
+    """``"cube"`` (or None): :func:`box_template`; ``"genus"``: the template with the target's genus
+    (:func:`~gsr_cad.reconstruct.templates.fitted_template`); a PolyMesh or a mesh file: checked to be a valid
+    quad mesh."""
     if template is None or (isinstance(template, str) and template == "cube"):
         return box_template(target, config.template_fit)
+    if isinstance(template, str) and template == "genus":
+        return fitted_template(target, target_genus(target)[0])
     if isinstance(template, PolyMesh):
         return validate_template(template)
     if isinstance(template, (str, os.PathLike)):
@@ -654,6 +659,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "stop_reason": run.stop_reason,
         "n_ops": len(final),
         "ops": _letters(final),
+        **genus_metrics(control, *target_genus(tgt)),
     })
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
