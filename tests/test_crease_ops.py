@@ -59,6 +59,8 @@ def test_crease_rim_creases_a_face_outline():
     drawn = [random_op(rng, CUBE, D, "R") for _ in range(100)]
     assert {o.face for o in drawn} == set(range(6)) and any(o.sharpness == 10.0 for o in drawn)
     assert perturb_op(CreaseRim(1, 1.0), rng, D).face == 1
+    chosen = [random_op(rng, CUBE, D, "R", crease_faces=lambda m: [2]).face for _ in range(200)]
+    assert 0.7 < chosen.count(2) / 200 < 0.9  # 3/4 proposed, the rest uniform (1/6 of which is face 2 too)
 
 
 def test_crease_op_json_and_checks():

@@ -59,3 +59,14 @@ def test_proposals_follow_the_feature_lines():
     # infinitely sharp everywhere: the limit is the cube itself, every edge lies on a feature line
     assert sorted(CreaseProposals(target.vertices, target.faces, radius=0.05).edges(sharp)) == list(range(12))
     assert CreaseProposals(target.vertices[:0], None).edges(cube) == []
+
+
+def test_rim_proposals_pick_the_cylinder_caps():
+    """The box template fitted to a cylinder: its top and bottom faces' outlines are nearest the rims."""
+    target = trimesh.creation.cylinder(radius=1.0, height=2.0)
+    proposals = CreaseProposals(target.vertices, target.faces)
+    box = unit_cube(1.0)
+    box = box.with_vertices(box.vertices * [2.4, 2.4, 2.4])
+    faces = proposals.faces(box)
+    assert sorted(faces) == [4, 5]  # -z and +z
+    assert CreaseProposals(target.vertices[:0], None).faces(box) == []

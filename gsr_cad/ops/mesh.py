@@ -428,13 +428,14 @@ def _hole_faces(view, face: int) -> tuple[int, int]:
 
 def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
               ranges: OpRanges = OpRanges(),
-              crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None) -> MeshOp:
+              crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None,
+              crease_faces: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None) -> MeshOp:
     """A random op for ``mesh``: kind uniform over the letters in ``kinds``, element uniform, parameters
     drawn from ``ranges`` (see :class:`OpRanges`) with ``scale`` the target's bounding-box diagonal.
     A C op picks its edge from ``crease_edges`` (edges of ``mesh`` proposed along the target's feature
     lines, :mod:`gsr_cad.reconstruct.features`, or a function of ``mesh`` giving them, called only for a C
-    op) when some are given. The op may still be invalid for
-    ``mesh`` (repair drops it)."""
+    op) when some are given; an R op picks its face from ``crease_faces`` (the same kinds of proposals) with
+    probability 3/4 when some are given. The op may still be invalid for ``mesh`` (repair drops it)."""
     letters = [k for k in kinds if k in ALL_OPS_BY_LETTER]
     if not letters or len(letters) != len(kinds):
         raise ConfigError(f"op kinds must be letters from {''.join(ALL_OPS_BY_LETTER)}, got {kinds!r}")
@@ -462,6 +463,10 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
     if kind in "CR":
         sharpness = (SHARPNESS_INFINITE if rng.random() < ranges.infinite else float(rng.uniform(*ranges.sharpness)))
         if kind == "R":
+            proposed = crease_faces(mesh) if callable(crease_faces) else crease_faces
+            faces = [f for f in (proposed or ()) if 0 <= f < conn.n_faces]
+            if faces and rng.random() < 0.75:
+                return CreaseRim(int(faces[int(rng.integers(len(faces)))]), sharpness)
             return CreaseRim(int(rng.integers(conn.n_faces)), sharpness)
         proposed = crease_edges(mesh) if callable(crease_edges) else crease_edges
         edges = [e for e in (proposed or ()) if 0 <= e < len(conn.edges)]

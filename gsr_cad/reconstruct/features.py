@@ -5,7 +5,10 @@ boundary edges); a cloud's are its points whose neighbourhood is far from planar
 ``l0 / (l0 + l1 + l2)`` of the covariance eigenvalues of its ``k`` nearest neighbours above ``variation``).
 Either way the result is a set of points on the feature lines, spaced about ``spacing`` of the diagonal
 apart. A control edge is proposed when the limit points of both its ends and of its midpoint lie within
-``radius`` of that set: then the limit curve of the edge runs along a feature line.
+``radius`` of that set: then the limit curve of the edge runs along a feature line. A control face is
+proposed for a rim crease (op R) when the farthest limit midpoint of its edges from the feature lines is
+within ``FACE_SLACK`` times the best face's: the faces whose outlines follow the feature lines most closely
+(a cylinder's caps, a nut's end rings), even while the smooth limit is still far from them.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from ..geometry.subdivision import get_catmull_clark
 
 FEATURE_ANGLE_DEG = 30.0
 """Dihedral angle (degrees) above which a target mesh edge is a feature line."""
+FACE_SLACK = 1.25
 CLOUD_NEIGHBOURS = 16
 CLOUD_VARIATION = 0.04
 """Surface variation above which a cloud point is on a feature line (0 on a plane, 1/3 at most)."""
@@ -110,4 +114,16 @@ class CreaseProposals:
         d, _ = self._tree.query(limit[:topo.n_vertices + topo.n_edges])
         worst = np.maximum(np.maximum(d[topo.edges[:, 0]], d[topo.edges[:, 1]]), d[topo.n_vertices:])
         ok = np.flatnonzero((worst <= self.radius) & ~topo.edge_is_boundary)
+        return ok[np.argsort(worst[ok], kind="stable")].tolist()
+
+    def faces(self, control: PolyMesh) -> list[int]:
+        """Faces of ``control`` whose edges' limit midpoints all lie within ``FACE_SLACK`` times the best face's
+        distance of the feature lines, nearest first (empty when the target has no feature line)."""
+        if self._tree is None:
+            return []
+        topo = control.topology
+        limit = get_catmull_clark(control, 1, self.boundary).limit_matrix @ control.vertices
+        d, _ = self._tree.query(limit[topo.n_vertices:topo.n_vertices + topo.n_edges])
+        worst = np.maximum.reduceat(d[topo.he_edge], control.offsets[:-1])
+        ok = np.flatnonzero(worst <= FACE_SLACK * worst.min())
         return ok[np.argsort(worst[ok], kind="stable")].tolist()
