@@ -156,8 +156,9 @@ class SurfaceProblem:
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
-        self.creases = (CreaseProposals(target.points, target.faces, boundary=config.boundary).edges
-                        if "C" in config.op_kinds else None)
+        proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
+                     if set("CR") & set(config.op_kinds) else None)
+        self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
@@ -203,7 +204,7 @@ class SurfaceProblem:
     # --- GA protocol -------------------------------------------------------------------------------------
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
         """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
-        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges, self.creases)
+        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges, *self.creases)
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         """The ops that apply (and keep the mesh within ``max_control_faces``), topped up to ``min_ops``."""
@@ -211,7 +212,7 @@ class SurfaceProblem:
         attempts = 0
         while len(kept) < self.config.min_ops and attempts < 50:
             attempts += 1
-            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges, self.creases)
+            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges, *self.creases)
             nxt = self._step(kept, state, op)
             if nxt is not None:
                 kept, state = kept + (op,), nxt
