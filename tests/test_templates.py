@@ -101,3 +101,18 @@ def test_surface_search_reports_genus_and_seeds_with_it():
     plain = reconstruct_surface(target, **small)
     assert plain.metrics["result_genus"] == 0 and "genus 1" in plain.metrics["genus_warning"]
     assert m["mean_distance"] < plain.metrics["mean_distance"]
+
+
+def test_benchmark_targets_have_their_genus(capsys):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    import genus_creases
+
+    expected = {"cylinder": 0, "nut": 1, "torus": 1, "ring": 1, "frame": 3}
+    for name, mesh in genus_creases.targets().items():
+        t = mesh.topology
+        assert t.is_closed and t.is_manifold and (2 - t.euler_characteristic) // 2 == expected[name], name
+    assert genus_creases.main(["--targets", "teapot"]) == 2
+    assert "unknown targets teapot" in capsys.readouterr().err
