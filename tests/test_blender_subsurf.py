@@ -17,6 +17,7 @@ import pytest
 from gsr_cad.exporters.hosts import find_host, run_blender
 from test_subdivision import MESHES, OPEN, match_meshes
 
+from gsr_cad import genome as genome_mod
 from gsr_cad.errors import OpError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import get_catmull_clark
@@ -162,25 +163,31 @@ def test_blender_creases_have_teeth(blender_creased):
 GENOMES = 200
 
 
-def creased_genome_meshes() -> list[PolyMesh]:
-    """The control meshes of GENOMES seeded random genomes over every surface op (C, R and H included), each
-    with at least one hole and one crease; crease rims of faces on the boundary of nothing (closed meshes)."""
+def creased_genomes() -> list[tuple]:
+    """GENOMES seeded random genomes on the unit cube over every surface op (C, R and H included; both caps
+    inset first), each building at least one hole and one crease in at most 80 faces."""
     out = []
     seed = 0
     while len(out) < GENOMES:
         rng = np.random.default_rng(seed)
         seed += 1
-        state = unit_cube()
-        state = Inset(5, 0.2).apply(Inset(4, 0.2).apply(state))
+        ops = [Inset(4, 0.2), Inset(5, 0.2)]
+        state = ops[1].apply(ops[0].apply(unit_cube()))
         for _ in range(12):
             op = random_op(rng, state, state.diagonal, "VELBIFSCRHII")
             try:
                 state = op.apply(state)
             except OpError:
                 continue
+            ops.append(op)
         if state.topology.euler_characteristic < 2 and state.creases and state.n_faces <= 80:
-            out.append(state)
+            out.append(tuple(ops))
     return out
+
+
+def creased_genome_meshes() -> list[PolyMesh]:
+    """The control meshes of :func:`creased_genomes`."""
+    return [genome_mod.replay(unit_cube(), g) for g in creased_genomes()]
 
 
 @pytest.fixture(scope="module")
