@@ -7,46 +7,49 @@ import argparse
 from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
-from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
-                      write_control_points, write_exports)
-from .progress import ga_progress
+from ..reconstruct.units import resolve_lengths
+from ._common import (add_config_flags, add_run_flags, check_run_args, config_overrides, html_module, output_dir,
+                      parse_formats, plots_module, save_run_args, searching, settle_stop, write_control_points,
+                      write_exports, write_outputs)
+from .summary import add_model_units, finish
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("curve", help="reconstruct a B-spline/Chaikin control polygon from ordered 2D points",
                        description=__doc__)
     p.add_argument("points", help="ordered x,y points (CSV, TXT or NPY)")
-    p.add_argument("-o", "--out", required=True, help="output directory")
     p.add_argument("--preset", choices=PRESETS, default="default",
                    help="'paper' reproduces the paper's GA exactly; 'default' adds least-squares placement")
-    p.add_argument("--seed", type=int, default=None, help="random seed (same seed, same result)")
     p.add_argument("--truth", help="ground-truth control points (CSV) to draw in the report")
-    p.add_argument("--formats", help="comma-separated export formats (default: all installed); 'none' for none")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_flags(p)
     add_config_flags(p, CurveConfig, skip=())
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     target = curve_target(args.points)
-    overrides = config_overrides(args, CurveConfig)
+    overrides = resolve_lengths(config_overrides(args, CurveConfig), target.diagonal, CurveConfig)
     config = CurveConfig.preset(args.preset, **overrides)
+    check_run_args(args)
     truth = load_curve_points(args.truth) if args.truth else None
     formats = parse_formats(args.formats, "curve")
-    out = prepare_out_dir(args.out)
-    with ga_progress(f"curve {target.name}", enabled=not args.quiet) as on_generation:
-        result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
-                                   progress=on_generation)
-    result.save(out)
-    write_control_points(out / "control_points.csv", result.control_points)
-    plots = plots_module()
-    plots.curve_report(result, target.points, out / "report.png", truth=truth)
-    written = write_exports(result, out, formats)
-    m = result.metrics
-    status = "interrupted: best so far" if result.interrupted else "done"
-    print(f"{status}: {m['n_control_points']} control points, mean distance {m['mean_distance']:.3g}, "
-          f"max {m['max_distance']:.3g} of the diagonal, {m['seconds']:.2f} s -> {out}")
-    for path in written:
-        print(f"  wrote {path}")
-    return 0
-
+    reports = html_module()  # a broken plotly install fails here, before the run
+    with output_dir(args.out) as out:
+        if args.checkpoint:
+            save_run_args(out, args)
+        with searching(f"curve {target.name}", args.quiet, config.max_seconds) as (progress, should_stop):
+            result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
+                                       progress=progress, should_stop=should_stop, checkpoint=args.checkpoint)
+    settle_stop(result)
+    add_model_units(result)
+    written = write_outputs(progress, [
+        ("writing result.json", lambda: result.save(out)),
+        ("writing control_points.csv",
+         lambda: write_control_points(out / "control_points.csv", result.control_points)),
+        ("drawing report.png",
+         lambda: plots_module().curve_report(result, target.points, out / "report.png", truth=truth)),
+        ("drawing report.html",
+         lambda: reports.curve_html(result, target.points, out / "report.html", truth=truth)),
+        ("writing the exports", lambda: write_exports(result, out, formats)),
+    ])
+    return finish(result, out, written[2:])

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Callable
 from typing import Any
@@ -27,7 +28,7 @@ import numpy as np
 
 from .. import genome as genome_mod
 from ..errors import OpError
-from ..ga import GAConfig, GeneticAlgorithm, GenerationReport, RunResult
+from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
 from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine
 from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_curve
@@ -176,14 +177,14 @@ class CurveProblem:
             self._fits[n] = (fit, fit.rms / self.diag, float(fit.distances.max()) / self.diag)
         return self._fits[n]
 
-    def final_fit(self, n: int) -> CurveFit:
+    def final_fit(self, n: int, hurry: bool = False) -> CurveFit:
         """The search's fit of ``n`` points refined to convergence (done once, for the winner).
 
         With a max-distance limit, placements that meet it win over those that do not; then the lower
         RMS wins (a converged least-squares fit beats a minimax one whenever both meet the limit).
         """
         quick = self.fit(n)[0]
-        if self.config.fitness != "geometric":
+        if self.config.fitness != "geometric" or hurry:
             return quick
         fit = fit_curve(self.points, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo,
                         hi=self.hi, rtol=1e-7, warm_params=quick.params)
@@ -202,7 +203,7 @@ class CurveProblem:
             cost *= 1e6 * (max_rel / self.config.max_distance) ** 2  # infeasible: worse, and graded by the miss
         return cost
 
-    def polished(self, genome: tuple) -> tuple:
+    def polished(self, genome: tuple, hurry: bool = False) -> tuple:
         """The genome rewritten onto the least-squares placement, as a clean modelling history.
 
         The genome's insertions are kept in order (same indices) but each inserts its point where the
@@ -213,7 +214,7 @@ class CurveProblem:
         ids = list(range(self.template.n))
         for k, op in enumerate(adds):
             ids.insert(op.index, self.template.n + k)
-        fitted = self.final_fit(len(ids)).ctrl
+        fitted = self.final_fit(len(ids), hurry).ctrl
         where = {point_id: fitted[i] for i, point_id in enumerate(ids)}
         placed = tuple(curve_ops.AddPoint(op.index, tuple(float(v) for v in where[self.template.n + k]))
                        for k, op in enumerate(adds))
@@ -273,13 +274,17 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
 def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | None = None, preset: str = "default",
                       seed: int | None = None, config: CurveConfig | None = None,
                       progress: Callable[[GenerationReport], None] | None = None,
-                      evaluator: Callable | None = None, **overrides: Any) -> Result:
+                      evaluator: Callable | None = None, should_stop: Callable[[], bool] | None = None,
+                      checkpoint: str | os.PathLike[str] | None = None, **overrides: Any) -> Result:
     """Reconstruct a clamped uniform B-spline (or Chaikin) control polygon and its op history.
 
     ``points``: an ``(n, 2)`` array of ordered points, a path to a CSV/TXT/NPY file or a
     :class:`~gsr_cad.reconstruct.inputs.CurveTarget`. ``overrides`` are
     :class:`CurveConfig` fields. Ctrl-C during the search keeps the best genome found so far
-    (``result.interrupted``). Raises :class:`~gsr_cad.errors.InputError` / ``ConfigError`` on bad input.
+    (``result.interrupted``), as does ``should_stop()`` turning true (the final refinement is then
+    skipped). With ``checkpoint`` the search state is saved there every generation and, if that file
+    exists, the run continues from it (same seed, same result as an uninterrupted run).
+    Raises :class:`~gsr_cad.errors.InputError` / ``ConfigError`` on bad input.
     """
     started = time.perf_counter()
     target = curve_target(points)
@@ -288,10 +293,12 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     config = (CurveConfig.preset(preset, **overrides) if config is None
               else dataclasses.replace(config, **overrides).validated())
     problem = CurveProblem(target, config)
-    engine = GeneticAlgorithm(problem, _ga_config(config, problem), seed=seed, evaluator=evaluator)
-    run: RunResult = engine.run(on_generation=progress)
+    tag = fingerprint("curve", target.points, config.to_json(), preset, seed)
+    engine = start_or_resume(problem, _ga_config(config, problem), seed, evaluator, checkpoint, tag)
+    run: RunResult = engine.run(on_generation=progress, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
-    final = problem.polished(best) if config.polish else best
+    hurry = should_stop is not None and should_stop()
+    final = problem.polished(best, hurry=hurry) if config.polish else best
     ctrl = genome_mod.replay(problem.template, final).points
     metrics = curve_metrics(ctrl, target, problem.degree)
     metrics.update({
