@@ -545,6 +545,9 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     ring, quads, ends, _ = edge_ring(conn, edge)
     if not quads:
         raise OpError(f"{what}: the edge has no quad to cut across")
+    ends_of_ring = [v for e in ring for v in conn.edges[e]]
+    if len(set(ends_of_ring)) != len(ends_of_ring):  # Blender's subdivide_edgering builds something else
+        raise OpError(f"{what}: the edge ring touches itself at a vertex")
     diag = _diagonal(view)
     faces = list(conn.faces)
     refs = {f: _unit(_face_newell(view, f)) for f, _ in quads}
