@@ -226,3 +226,61 @@ def test_random_creased_genomes_with_holes_match_blender(blender_genomes):
                       cKDTree(ours.vertices).query(theirs.vertices)[0].max()) / m.diagonal
             worst[limit] = max(worst[limit], err)
     assert worst[False] < 1e-6 and worst[True] < 5e-5, worst
+
+
+# --- the Blender exporter replays creased genomes with holes ------------------------------------------------
+RUNNER = Path(__file__).parent / "blender" / "replay_runner.py"
+
+
+def _read_obj(path: Path) -> PolyMesh:
+    v, f = [], []
+    for line in path.read_text().splitlines():
+        if line.startswith("v "):
+            v.append([float(x) for x in line.split()[1:4]])
+        elif line.startswith("f "):
+            f.append([int(x) - 1 for x in line.split()[1:]])
+    return PolyMesh.from_faces(np.array(v), f)
+
+
+@pytest.fixture(scope="module")
+def blender_replays(tmp_path_factory):
+    if find_host("blender") is None:
+        pytest.skip("Blender is not installed (Debian: apt-get install blender)")
+    from gsr_cad.exporters.blender import write_blender_script
+
+    work = tmp_path_factory.mktemp("blender_replays")
+    genomes = creased_genomes()
+    jobs = []
+    for i, genome in enumerate(genomes):
+        script = write_blender_script(genome, unit_cube(), work / f"g{i}.py", levels=2, use_limit_surface=True)
+        jobs.append({"script": str(script), "args": ["--control", str(work / f"c{i}.obj"),
+                                                       "--evaluated", str(work / f"e{i}.obj")]})
+    (work / "jobs.json").write_text(json.dumps(jobs))
+    run_blender(RUNNER, [work / "jobs.json", work / "results.json"], timeout=1500)
+    return genomes, work, json.loads((work / "results.json").read_text())
+
+
+def test_blender_replays_creased_genomes_with_holes(blender_replays):
+    """The exporter's script rebuilds the control mesh of 200 genomes with C, R and H (and the paper's ops)
+    within 1e-6 of the diagonal, and its modifier (creases set from ours) gives our limit within 1e-5 (5e-5 where
+    an infinitely sharp dart is, see test_creases_match_blender)."""
+    genomes, work, results = blender_replays
+    # known gap: Blender's subdivide_edgering builds something else for 2 of these 200 closed rings around a
+    # tunnel (an edge loop after a hole); the script then stops with "replay diverged", never a wrong mesh
+    diverged = [i for i, r in enumerate(results) if r["error"]]
+    assert len(diverged) <= 2 and all("replay diverged" in results[i]["error"] for i in diverged), diverged
+    worst = {"control": 0.0, "limit": 0.0}
+    for i, genome in enumerate(genomes):
+        if i in diverged:
+            continue
+        ours = genome_mod.replay(unit_cube(), genome)
+        control = _read_obj(work / f"c{i}.obj")
+        assert control.faces == ours.faces
+        worst["control"] = max(worst["control"], np.abs(control.vertices - ours.vertices).max() / ours.diagonal)
+        limit = get_catmull_clark(ours, 2).limit(ours.vertices)
+        theirs = _read_obj(work / f"e{i}.obj")
+        assert (theirs.n_vertices, theirs.n_faces) == (limit.n_vertices, limit.n_faces)
+        err = max(cKDTree(theirs.vertices).query(limit.vertices)[0].max(),
+                  cKDTree(limit.vertices).query(theirs.vertices)[0].max()) / ours.diagonal
+        worst["limit"] = max(worst["limit"], err)
+    assert worst["control"] < 1e-6 and worst["limit"] < 5e-5, worst
