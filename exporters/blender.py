@@ -28,7 +28,7 @@ from gsr_cad.atomic import write_text
 from gsr_cad.errors import ConfigError, ExportError, OpError
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.ops.base import Op
-from gsr_cad.ops.mesh import OPS_BY_LETTER
+from gsr_cad.ops.mesh import ALL_OPS_BY_LETTER
 from gsr_cad.ops.mesh_kernel import bbox_centre
 
 from . import hosts
@@ -40,7 +40,8 @@ from .model import CurveModel, curve_model, read_obj, require_ops, same_mesh, su
 MAX_LEVELS = 6
 _BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
 CURVE_RESOLUTION = 12
-SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel")
+SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel", "crease",
+               "crease_rim", "hole")
 """The surface ops the Blender mesh script replays."""
 BLENDER_NAME_LIMIT = 63  # bytes in an ID name
 CONTROL_TOL = 1e-6
@@ -63,6 +64,10 @@ def _op_params(op: Op, state: PolyMesh) -> dict[str, Any]:
     params = op.to_json()
     if op.name == "scale":
         params["pivot"] = list(bbox_centre(state))
+    if op.name == "hole":  # the bridge quads as gsr_cad pairs the rims (Blender's float32 could pick another pairing)
+        after = op.apply(state)
+        params["quads"] = [list(after.faces[op.face_a]), list(after.faces[op.face_b])] + [
+            list(f) for f in after.faces[state.n_faces:]]
     return params
 
 
@@ -78,6 +83,7 @@ def mesh_script(genome: Sequence[Op], states: Sequence[PolyMesh], levels: int, u
         "template_vertices": template.vertices.tolist(), "template_faces": [list(f) for f in template.faces],
         "steps": [{"label": _blender_name(label), "op": _op_params(op, state)}
                   for label, op, state in zip(labels[1:], genome, states)],
+        "creases": [[a, b, s] for (a, b), s in states[-1].creases.items()],
     })
 
 
@@ -95,7 +101,7 @@ def write_blender_script(genome: Sequence[Op], template: PolyMesh, path: str | o
     if title and not all(ch.isalnum() or ch in " -_." for ch in title):
         raise ConfigError(f"the title may hold letters, digits, spaces, '-', '_' and '.', got {title!r}")
     genome = tuple(genome)
-    known = {cls.name for cls in OPS_BY_LETTER.values()}
+    known = {cls.name for cls in ALL_OPS_BY_LETTER.values()}
     for op in genome:
         if op.name not in known:
             raise ExportError(f"the Blender writer knows only surface ops, got {op.name!r}")

@@ -132,6 +132,13 @@ def test_mesh_report_known_meshes(name):
         assert mesh.topology.is_manifold
 
 
+def test_mesh_report_counts_creases():
+    cube = unit_cube()
+    assert (mesh_report(cube)["creased_edges"], mesh_report(cube)["sharp_edges"]) == (0, 0)
+    report = mesh_report(cube.with_creases({(4, 5): 10.0, (5, 7): 2.0, (0, 1): 12.0}))
+    assert (report["creased_edges"], report["sharp_edges"]) == (3, 2) and report["valid"]
+
+
 def test_mesh_report_flags():
     assert mesh_report(flipped_cube())["oriented"] is False
     assert mesh_report(BAD["bowtie vertex"][0])["manifold"] is False

@@ -5,24 +5,35 @@ Vertices are a read-only ``(n, 3)`` float array; faces are a flat corner list ``
 Topology (half-edges, edges, adjacency) is derived once on first use and shared by every mesh that
 only moved vertices (:meth:`PolyMesh.with_vertices`), so that caches keyed by :attr:`topology_key`
 (subdivision matrices) survive vertex moves.
+
+Edge sharpness (creases, as OpenSubdiv defines them: ``0`` smooth, ``> 0`` semi-sharp, ``>= 10``
+infinitely sharp) is optional topology-like data: a mapping of sorted vertex pairs ``(a, b)``, ``a < b``,
+to positive sharpness, stored as two read-only arrays (:attr:`PolyMesh.crease_pairs`, lexicographic
+order, and :attr:`PolyMesh.crease_values`, clipped to ``10``). :attr:`PolyMesh.topology_key` includes
+it (a creased mesh subdivides differently); :attr:`PolyMesh.connectivity_key` is the faces alone.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import TopologyError
+from ..errors import InputError, TopologyError
+
+SHARPNESS_INFINITE = 10.0
+"""OpenSubdiv's infinitely sharp edge: sharpness at or above it never decays."""
+Creases = tuple[np.ndarray, np.ndarray]
 
 
 class PolyMesh:
     """An immutable polygon mesh; build it with :meth:`from_faces` or the constructor."""
 
-    __slots__ = ("vertices", "corners", "offsets", "_topology", "_key", "__dict__")
+    __slots__ = ("vertices", "corners", "offsets", "_topology", "_key", "_creases", "__dict__")
 
-    def __init__(self, vertices: np.ndarray, corners: np.ndarray, offsets: np.ndarray, _topology=None):
+    def __init__(self, vertices: np.ndarray, corners: np.ndarray, offsets: np.ndarray, _topology=None,
+                 creases: Mapping[tuple[int, int], float] | None = None):
         v = _frozen(vertices, np.float64).reshape(-1, 3)
         c = _frozen(corners, np.int64).ravel()
         o = _frozen(offsets, np.int64).ravel()
@@ -34,34 +45,69 @@ class PolyMesh:
         self.vertices, self.corners, self.offsets = v, c, o
         self._topology = _topology
         self._key = None
+        self._creases = None if not creases else _normalised_creases(self, creases)
 
     @classmethod
-    def from_faces(cls, vertices: np.ndarray | Sequence, faces: Iterable[Sequence[int]]) -> PolyMesh:
-        """Build from a vertex array and a sequence of vertex-index cycles."""
+    def from_faces(cls, vertices: np.ndarray | Sequence, faces: Iterable[Sequence[int]],
+                   creases: Mapping[tuple[int, int], float] | None = None) -> PolyMesh:
+        """Build from a vertex array, a sequence of vertex-index cycles and optional edge sharpness."""
         faces = [tuple(int(i) for i in f) for f in faces]
         sizes = np.array([len(f) for f in faces], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)]) if faces else np.zeros(1, np.int64)
         corners = np.fromiter((i for f in faces for i in f), dtype=np.int64, count=int(sizes.sum()))
-        return cls(vertices, corners, offsets)
+        return cls(vertices, corners, offsets, creases=creases)
 
     @classmethod
     def _trusted(cls, vertices: np.ndarray, corners: np.ndarray, offsets: np.ndarray, topology=None,
-                 key: tuple | None = None) -> PolyMesh:
+                 key: tuple | None = None, creases: Creases | None = None) -> PolyMesh:
         """A mesh on arrays already read-only, float64 ``(n, 3)`` / int64 and valid (the mesh ops' output,
-        valid by construction): no checks, no copies. ``key``, when given, must be :attr:`topology_key`."""
+        valid by construction): no checks, no copies. ``key``, when given, must be :attr:`connectivity_key`;
+        ``creases``, when given, normalised ``(pairs, values)`` on edges of the faces."""
         mesh = object.__new__(cls)
         mesh.vertices, mesh.corners, mesh.offsets = vertices, corners, offsets
         mesh._topology = topology
         mesh._key = key
+        mesh._creases = creases
         return mesh
 
     def with_vertices(self, vertices: np.ndarray) -> PolyMesh:
-        """Same faces (valid already: not checked again), new positions; shares the topology (and its caches) if
-        it was built."""
+        """Same faces (valid already: not checked again) and creases, new positions; shares the topology (and its
+        caches) if it was built."""
         v = _frozen(vertices, np.float64).reshape(-1, 3)
         if v.shape != self.vertices.shape:
             raise TopologyError("with_vertices needs as many vertices as the mesh has")
-        return PolyMesh._trusted(v, self.corners, self.offsets, self._topology, self._key)
+        return PolyMesh._trusted(v, self.corners, self.offsets, self._topology, self._key, self._creases)
+
+    def with_creases(self, creases: Mapping[tuple[int, int], float] | None) -> PolyMesh:
+        """Same vertices and faces, edge sharpness ``creases`` (``{(a, b): sharpness}``, either vertex order;
+        zero entries are dropped; TopologyError when a pair is not an edge)."""
+        return PolyMesh._trusted(self.vertices, self.corners, self.offsets, self._topology, self._key,
+                                 _normalised_creases(self, creases) if creases else None)
+
+    # --- creases ---------------------------------------------------------------------------------
+    @property
+    def crease_pairs(self) -> np.ndarray:
+        """``(k, 2)`` sorted vertex pairs of the creased edges, lexicographic order (read-only)."""
+        return self._creases[0] if self._creases is not None else _NO_PAIRS
+
+    @property
+    def crease_values(self) -> np.ndarray:
+        """``(k,)`` sharpness of :attr:`crease_pairs`, in ``(0, 10]`` (read-only)."""
+        return self._creases[1] if self._creases is not None else _NO_VALUES
+
+    @property
+    def creases(self) -> dict[tuple[int, int], float]:
+        """Edge sharpness as ``{(a, b): sharpness}`` with ``a < b`` (empty when nothing is creased)."""
+        return {(int(a), int(b)): float(s) for (a, b), s in zip(self.crease_pairs, self.crease_values)}
+
+    @functools.cached_property
+    def edge_sharpness(self) -> np.ndarray:
+        """Sharpness of every :attr:`topology` edge (``0`` where smooth), read-only."""
+        out = np.zeros(self.topology.n_edges)
+        if self._creases is not None:
+            out[_edge_index(self.topology, self.crease_pairs)] = self.crease_values
+        out.setflags(write=False)
+        return out
 
     # --- sizes and faces -------------------------------------------------------------------------
     @property
@@ -146,14 +192,80 @@ class PolyMesh:
         return self._topology
 
     @property
-    def topology_key(self) -> tuple:
-        """Hashable key of the connectivity alone (for caches that survive vertex moves)."""
+    def connectivity_key(self) -> tuple:
+        """Hashable key of the faces alone (for caches that survive vertex moves and crease changes)."""
         if self._key is None:
             self._key = (self.n_vertices, self.offsets.tobytes(), self.corners.tobytes())
         return self._key
 
+    @property
+    def topology_key(self) -> tuple:
+        """Hashable key of the connectivity and the creases (for caches that survive vertex moves); equal to
+        :attr:`connectivity_key` when nothing is creased."""
+        if self._creases is None:
+            return self.connectivity_key
+        return (*self.connectivity_key, self._creases[0].tobytes(), self._creases[1].tobytes())
+
     def __repr__(self) -> str:
         return f"PolyMesh({self.n_vertices} vertices, {self.n_faces} faces)"
+
+
+_NO_PAIRS = np.zeros((0, 2), dtype=np.int64)
+_NO_PAIRS.setflags(write=False)
+_NO_VALUES = np.zeros(0)
+_NO_VALUES.setflags(write=False)
+
+
+def _edge_index(topo, pairs: np.ndarray) -> np.ndarray:
+    """Topology edge index of each sorted vertex pair; TopologyError for a pair that is no edge."""
+    n = np.int64(max(topo.n_vertices, 1))
+    keys = np.sort(topo.edges, axis=1) @ np.array([n, 1])
+    order = np.argsort(keys)
+    want = pairs @ np.array([n, 1])
+    at = np.minimum(np.searchsorted(keys, want, sorter=order), len(keys) - 1)
+    found = order[at] if len(keys) else at
+    if len(want) and (not len(keys) or np.any(keys[found] != want)):
+        bad = pairs[keys[found] != want][0] if len(keys) else pairs[0]
+        raise TopologyError(f"a crease names vertices {int(bad[0])}-{int(bad[1])}, which share no edge")
+    return found
+
+
+def sorted_creases(pairs: np.ndarray, values: np.ndarray) -> Creases | None:
+    """Normalised crease arrays (read-only, sorted pairs in lexicographic order, zero sharpness dropped,
+    values clipped to :data:`SHARPNESS_INFINITE`; the last of repeated pairs wins), None when empty."""
+    pairs = np.sort(np.asarray(pairs, dtype=np.int64).reshape(-1, 2), axis=1)
+    values = np.minimum(np.asarray(values, dtype=np.float64).ravel(), SHARPNESS_INFINITE)
+    order = np.lexsort((pairs[:, 1], pairs[:, 0]))[::-1]
+    pairs, values = pairs[order], values[order]
+    _, first = np.unique(pairs, axis=0, return_index=True)  # the last given, after the reversal
+    keep = first[values[first] > 0.0]
+    if not keep.size:
+        return None
+    pairs, values = np.ascontiguousarray(pairs[keep]), np.ascontiguousarray(values[keep])
+    pairs.setflags(write=False)
+    values.setflags(write=False)
+    return pairs, values
+
+
+def _normalised_creases(mesh: PolyMesh, creases: Mapping[tuple[int, int], float]) -> Creases | None:
+    """Checked and normalised crease arrays of ``mesh`` (InputError on a malformed entry)."""
+    if not isinstance(creases, Mapping):
+        raise InputError(f"creases must be a mapping of vertex pairs to sharpness, got {type(creases).__name__}")
+    pairs, values = [], []
+    for pair, s in creases.items():
+        try:
+            a, b = (int(i) for i in pair)
+            s = float(s)
+        except (TypeError, ValueError):
+            raise InputError(f"a crease must map two vertex indices to a number, got {pair!r}: {s!r}") from None
+        if not (np.isfinite(s) and s >= 0.0):
+            raise InputError(f"crease sharpness must be a finite number >= 0, got {s!r}")
+        pairs.append((a, b))
+        values.append(s)
+    out = sorted_creases(np.array(pairs, dtype=np.int64).reshape(-1, 2), np.array(values))
+    if out is not None:
+        _edge_index(mesh.topology, out[0])
+    return out
 
 
 def _frozen(array, dtype) -> np.ndarray:

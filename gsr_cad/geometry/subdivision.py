@@ -1,7 +1,7 @@
 """Catmull-Clark subdivision of polygon meshes (n-gons, boundaries) as sparse matrices.
 
-Everything here depends on connectivity alone, so a :class:`CatmullClark` is built once per
-``(topology_key, levels, boundary)`` and kept in an LRU cache (:func:`get_catmull_clark`): moving
+Everything here depends on connectivity (and edge sharpness) alone, so a :class:`CatmullClark` is built once per
+``(topology_key, levels, boundary)`` (:attr:`PolyMesh.topology_key` includes the creases) and kept in an LRU cache (:func:`get_catmull_clark`): moving
 vertices then costs one sparse product (:attr:`CatmullClark.refine_matrix` or
 :attr:`CatmullClark.limit_matrix` times the ``(n, 3)`` control vertices).
 
@@ -18,7 +18,19 @@ Rules (those of OpenSubdiv's Catmull-Clark with the default options, hence Blend
   (lagrange ``EdgeAndCorner``): a topological corner (a boundary vertex with one face and two
   edges) is infinitely sharp and never moves, in the refinement and in the limit;
 * a vertex no face uses stays where it is (identity row); a non-manifold vertex (two fans of faces
-  meeting at a point, which OpenSubdiv would sharpen) is refused with TopologyError.
+  meeting at a point, which OpenSubdiv would sharpen) is refused with TopologyError;
+* creases (:attr:`PolyMesh.edge_sharpness`, or ``sharpness`` per edge for a Topology) follow OpenSubdiv with
+  its default creasing method, ``CREASE_UNIFORM``, which Blender and lagrange use: a child edge has sharpness
+  ``s - 1`` (at least 0; ``s >= 10`` is infinite and stays). Edge point of a sharp edge: the midpoint (blended
+  ``s : 1 - s`` with the smooth point while ``s < 1``). Vertex point by the number of sharp edges, boundary
+  edges included: 0 or 1 (a dart) smooth, 2 crease ``(u0 + 6 v + u1) / 8``, 3 or more a corner ``v``; where
+  the next level's rule differs, the two rules blend by the mean sharpness of the edges that decay to 0
+  (OpenSubdiv's fractional weight). Blender's crease ``c`` is sharpness ``10 c**2`` (measured); Blender alone
+  also sharpens a vertex with exactly two edges by the smaller sharpness of the two (not done here). Creased
+  limits are exact: where semi-sharp edges remain after the last level the points are refined further (with
+  these rules) until none does; then crease points take ``(u0 + 4 p + u1) / 6``, corners stay and a dart takes
+  its exact stencil (the left eigenvector of its 1-ring's subdivision matrix), where OpenSubdiv's own limit
+  (lagrange's) keeps the last level's rules and the smooth stencil at darts.
 
 Refined order, level by level: vertex points first (in vertex order), then edge points (in
 :class:`~gsr_cad.geometry.topology.Topology` edge order), then face points (in face order). Face ``f``
@@ -54,7 +66,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ConfigError, InputError, TopologyError
-from .polymesh import PolyMesh
+from .polymesh import SHARPNESS_INFINITE, PolyMesh
 from .surface_distance import triangulate
 from .topology import Topology
 
@@ -223,6 +235,7 @@ class _VertexLayout:
         fixed = count == 0
         if boundary == "corners":  # a topological corner: one face, two boundary edges
             fixed |= (out_he >= 0) & (count == 1)
+        self.fixed = fixed
         crease = (out_he >= 0) & ~fixed
         smooth = (out_he < 0) & ~fixed
         self.crease = np.flatnonzero(crease)
@@ -396,6 +409,231 @@ def _limit(level: _Level, layout: _VertexLayout, vertex_points_only: bool = Fals
     return _csr([vertices, edges, faces], n_points)
 
 
+# --- creases (OpenSubdiv's rules, creasing method uniform: Blender's and lagrange's) ------------------------
+
+def _child_sharpness(s: np.ndarray) -> np.ndarray:
+    """Sharpness one level down: infinite stays, otherwise ``max(s - 1, 0)``."""
+    return np.where(s >= SHARPNESS_INFINITE, s, np.maximum(s - 1.0, 0.0))
+
+
+def _refined_sharpness(t: Topology, refined: Topology, s: np.ndarray) -> np.ndarray:
+    """Sharpness of the next level's edges: both halves of edge ``e`` (the edges of refined half-edges
+    ``4 h0`` and ``4 next(h0) + 3``) get the child sharpness of ``e``, the new inner edges are smooth."""
+    out = np.zeros(refined.n_edges)
+    h0 = t.edge_halfedge
+    child = _child_sharpness(s)
+    out[refined.he_edge[4 * h0]] = child
+    out[refined.he_edge[4 * t.he_next[h0] + 3]] = child
+    return out
+
+
+class _SharpVertices:
+    """Per vertex of one level: how many of its edges are sharp (boundary edges count as infinitely sharp),
+    the far ends of the first two, and whether one of them is an interior sharp edge (the only vertices
+    whose rows differ from those of an uncreased mesh)."""
+
+    def __init__(self, t: Topology, s: np.ndarray):
+        sharp = (s > 0.0) | t.edge_is_boundary
+        ends = t.edges[sharp]
+        at = np.concatenate([ends[:, 0], ends[:, 1]])
+        other = np.concatenate([ends[:, 1], ends[:, 0]])
+        nv = t.n_vertices
+        self.count = np.bincount(at, minlength=nv)
+        order = np.argsort(at, kind="stable")
+        ptr = _indptr(self.count)[:-1]
+        two = self.count >= 2
+        self.u0 = np.where(two, other[order[np.minimum(ptr, len(at) - 1)]] if len(at) else 0, -1)
+        self.u1 = np.where(two, other[order[np.minimum(ptr + 1, len(at) - 1)]] if len(at) else 0, -1)
+        inner = t.edges[(s > 0.0) & ~t.edge_is_boundary]
+        self.touched = np.zeros(nv, dtype=bool)
+        self.touched[inner.ravel()] = True
+
+
+def _crease_rows(rows: np.ndarray, centre: np.ndarray, w_centre, u0: np.ndarray, u1: np.ndarray, w_end,
+                 n_rows: int, n_cols: int) -> sp.csr_matrix:
+    """Sparse rows ``w_centre * centre + w_end * (u0 + u1)`` at ``rows`` (weights may be arrays)."""
+    k = len(rows)
+    r = np.concatenate([rows, rows, rows])
+    c = np.concatenate([centre, u0, u1])
+    v = np.concatenate([np.broadcast_to(w_centre, k), np.broadcast_to(w_end, k), np.broadcast_to(w_end, k)])
+    keep = v != 0.0
+    return sp.csr_matrix((v[keep], (r[keep], c[keep])), shape=(n_rows, n_cols))
+
+
+def _creased_step(level: _Level, layout: _VertexLayout, smooth: sp.csr_matrix, s: np.ndarray) -> sp.csr_matrix:
+    """The step matrix ``smooth`` (uncreased rules) with OpenSubdiv's crease rules where edges of sharpness
+    ``s > 0`` are (boundary edges count as infinitely sharp; a fixed vertex stays fixed).
+
+    Edge point of a sharp edge: the midpoint, blended ``s : 1 - s`` with the smooth point while ``s < 1``.
+    Vertex point by the number of sharp edges (the rule): 0 or 1 (dart) smooth, 2 crease
+    ``(u0 + 6 v + u1) / 8`` along them, 3 or more corner ``v``. When the rule one level down differs
+    (semi-sharp edges reaching 0), the point blends this level's rule with the next level's by the mean
+    sharpness of the edges that reach 0 (at most 1), as OpenSubdiv's fractional weight does.
+    """
+    t = level.topo
+    nv, ne = t.n_vertices, t.n_edges
+    n_rows = smooth.shape[0]
+    child = _child_sharpness(s)
+    here, down = _SharpVertices(t, s), _SharpVertices(t, child)
+    keep = np.ones(n_rows)
+    extra = []
+
+    e = np.flatnonzero((s > 0.0) & ~t.edge_is_boundary)
+    w = np.where(child[e] > 0.0, 1.0, np.minimum(s[e], 1.0))
+    keep[nv + e] = 1.0 - w
+    extra.append(_crease_rows(nv + e, t.edges[e, 0], 0.5 * w, t.edges[e, 1], t.edges[e, 1], 0.25 * w, n_rows, nv))
+
+    v = np.flatnonzero(here.touched & ~layout.fixed & (here.count >= 2))
+    p_rule = np.minimum(here.count[v], 3)  # 2 crease, 3 corner
+    c_rule = np.minimum(down.count[v], 3)
+    c_rule = np.where(c_rule <= 1, 0, c_rule)  # 0: smooth (or dart)
+    fading = (s > 0.0) & (child <= 0.0) & ~t.edge_is_boundary
+    ends = t.edges[fading].ravel()
+    total = np.bincount(ends, weights=np.repeat(s[fading], 2), minlength=nv)
+    n_fading = np.bincount(ends, minlength=nv)
+    frac = np.minimum(total[v] / np.maximum(n_fading[v], 1), 1.0)
+    pw = np.where(p_rule == c_rule, 1.0, frac)
+    # this level's rule, weight pw: crease (3/4, 1/8 on the sharp edges' ends) or corner (1)
+    crease = p_rule == 2
+    extra.append(_crease_rows(v, v, pw * np.where(crease, 0.75, 1.0), here.u0[v], here.u1[v],
+                              pw * np.where(crease, 0.125, 0.0), n_rows, nv))
+    # the next level's rule, weight 1 - pw: smooth (the uncreased row) or crease (after a corner)
+    keep[v] = np.where(c_rule == 0, 1.0 - pw, 0.0)
+    to_crease = np.flatnonzero((c_rule == 2) & (pw < 1.0))
+    cv = v[to_crease]
+    q = 1.0 - pw[to_crease]
+    extra.append(_crease_rows(cv, cv, 0.75 * q, down.u0[cv], down.u1[cv], 0.125 * q, n_rows, nv))
+    out = sp.diags(keep) @ smooth
+    for m in extra:
+        out = out + m
+    return out.tocsr()
+
+
+@functools.lru_cache(maxsize=64)
+def _dart_mask(n: int) -> np.ndarray:
+    """Exact limit weights at a dart of valence ``n`` (all quads, one infinitely sharp edge) on its 1-ring:
+    the point, its edge neighbours ``e_0 .. e_{n-1}`` in fan order from the sharp edge ``e_0``, then the
+    diagonals ``f_i`` of the quads between ``e_i`` and ``e_{i+1}``. It is the left eigenvector for
+    eigenvalue 1 of the 1-ring's subdivision matrix (smooth vertex rule, the midpoint on ``e_0``); the smooth
+    stencil that OpenSubdiv's limit uses at a dart is not on the surface there."""
+    m = 2 * n + 1
+    i = np.arange(n)
+    j = (i + 1) % n
+    faces = np.zeros((n, m))  # the face points F_i of the current 1-ring
+    np.add.at(faces, (i, 0), 0.25)
+    np.add.at(faces, (i, 1 + i), 0.25)
+    np.add.at(faces, (i, 1 + j), 0.25)
+    np.add.at(faces, (i, 1 + n + i), 0.25)
+    step = np.zeros((m, m))
+    step[0, 0] = (n - 2.0) / n
+    step[0, 1:1 + n] += 1.0 / n**2
+    step[0] += faces.sum(axis=0) / n**2
+    for k in range(n):
+        if k == 0:
+            step[1, 0] = step[1, 1] = 0.5
+        else:
+            step[1 + k, 0] += 0.25
+            step[1 + k, 1 + k] += 0.25
+            step[1 + k] += 0.25 * (faces[k - 1] + faces[k])
+    step[1 + n:] = faces
+    w, vecs = np.linalg.eig(step.T)
+    mask = np.real(vecs[:, np.argmin(np.abs(w - 1.0))])
+    mask = mask / mask.sum()
+    mask.setflags(write=False)
+    return mask
+
+
+def _dart_rows(points: Topology, s: np.ndarray, darts: np.ndarray, n_rows: int) -> sp.csr_matrix:
+    """Rows of :func:`_dart_mask` at the ``darts`` of the all-quad topology ``points``."""
+    out = sp.csr_matrix((n_rows, points.n_vertices))
+    if not darts.size:
+        return out
+    sharp_he = np.flatnonzero(s[points.he_edge] >= SHARPNESS_INFINITE)
+    start = np.full(points.n_vertices, -1, dtype=np.int64)
+    start[points.he_origin[sharp_he]] = sharp_he
+    valence = points.vertex_valence[darts]
+    for n in np.unique(valence):
+        at = darts[valence == n]
+        h = start[at]
+        cols = [at]
+        ring_e, ring_f = [], []
+        for _ in range(n):
+            ring_e.append(points.he_dest[h])
+            ring_f.append(points.he_origin[points.he_next[points.he_next[h]]])
+            h = points.he_twin[points.he_prev[h]]
+        cols = np.stack(cols + ring_e + ring_f, axis=1)
+        mask = _dart_mask(int(n))
+        rows = np.repeat(at, len(mask))
+        out = out + sp.csr_matrix((np.tile(mask, len(at)), (rows, cols.ravel())), shape=out.shape)
+    return out
+
+
+def _creased_limit(limit: sp.csr_matrix, points: Topology, s: np.ndarray, boundary: str) -> sp.csr_matrix:
+    """The limit rows ``limit`` (in terms of the points of the all-quad topology ``points``, whose edges have
+    sharpness ``s``, 0 or infinite) where an interior edge is sharp: the crease limit ``(u0 + 4 p + u1) / 6``
+    at a point with two sharp edges, the point itself at one with three or more (a preserved corner stays
+    fixed), the exact dart limit (:func:`_dart_mask`) at an interior point with one."""
+    sv = _SharpVertices(points, s)
+    fixed = np.bincount(points.edges.ravel(), minlength=points.n_vertices) == 0
+    if boundary == "corners":
+        fixed |= points.vertex_is_boundary & (np.diff(points.vertex_faces_csr[0]) == 1)
+    v = np.flatnonzero(sv.touched & ~fixed & (sv.count >= 2))
+    darts = np.flatnonzero(sv.touched & (sv.count == 1))
+    crease = sv.count[v] == 2
+    keep = np.ones(limit.shape[0])
+    keep[v] = 0.0
+    keep[darts] = 0.0
+    rows = _crease_rows(v, v, np.where(crease, 4.0 / 6.0, 1.0), sv.u0[v], sv.u1[v], np.where(crease, 1.0 / 6.0, 0.0),
+                        limit.shape[0], limit.shape[1])
+    return (sp.diags(keep) @ limit + rows + _dart_rows(points, s, darts, limit.shape[0])).tocsr()
+
+
+def _check_sharpness(sharpness: np.ndarray | None, topo: Topology) -> np.ndarray | None:
+    """Edge sharpness as a float array over ``topo``'s edges (None when nothing is sharp), clipped to
+    :data:`SHARPNESS_INFINITE`; InputError for a wrong length or a negative or non-finite value."""
+    if sharpness is None:
+        return None
+    s = np.asarray(sharpness, dtype=np.float64)
+    if s.shape != (topo.n_edges,):
+        raise InputError(f"expected one sharpness per edge ({topo.n_edges}), got shape {s.shape}")
+    if not np.all(np.isfinite(s) & (s >= 0.0)):
+        raise InputError("edge sharpness must be finite numbers >= 0")
+    s = np.minimum(s, SHARPNESS_INFINITE)
+    return s if np.any((s > 0.0) & ~topo.edge_is_boundary) else None
+
+
+def _semi_sharp(s: np.ndarray) -> bool:
+    return bool(np.any((s > 0.0) & (s < SHARPNESS_INFINITE)))
+
+
+def _exact_limit(level: _Level, layout: _VertexLayout, s: np.ndarray, boundary: str,
+                 vertex_points_only: bool) -> sp.csr_matrix:
+    """Creased ``L_{k+1}`` (the limit of the level-``k + 1`` points, in terms of them; only the vertex points'
+    rows with ``vertex_points_only``). Where semi-sharp edges remain at level ``k + 1`` the points are
+    refined further, with the crease rules, until every sharpness is 0 or infinite; there the crease and
+    corner limits are exact and the smooth stencil holds elsewhere. Each point's limit is that of the
+    vertex point it becomes (vertex points come first at every level)."""
+    t = level.topo
+    n_points = t.n_vertices if vertex_points_only else t.n_vertices + t.n_edges + t.n_faces
+    finer = _refined_level(level)
+    s_points = _refined_sharpness(t, finer.topo, s)
+    extra = None
+    while _semi_sharp(s_points):
+        if len(finer.topo.he_origin) * 4 > MAX_REFINED_FACES:
+            raise ConfigError(f"the limit of semi-sharp creases (sharpness up to {s_points.max():g}) needs more "
+                              f"than {MAX_REFINED_FACES} faces; use fewer levels' worth of sharpness")
+        level, s = finer, s_points
+        layout = _VertexLayout(level, boundary, generic=False)
+        step = _creased_step(level, layout, _step(level, layout), s)
+        extra = step if extra is None else step @ extra
+        finer = _refined_level(level)
+        s_points = _refined_sharpness(level.topo, finer.topo, s)
+    out = _creased_limit(_limit(level, layout), finer.topo, s_points, boundary)
+    if extra is not None:
+        out = out @ extra
+    return out[:n_points]
+
+
 class CatmullClark:
     """Catmull-Clark refinement and limit evaluation for one connectivity, as sparse matrices.
 
@@ -404,10 +642,13 @@ class CatmullClark:
     those ``N`` vertices. ``corners``/``offsets`` are the refined faces in PolyMesh layout.
     """
 
-    def __init__(self, mesh: PolyMesh | Topology, levels: int = 1, boundary: Boundary = "all"):
+    def __init__(self, mesh: PolyMesh | Topology, levels: int = 1, boundary: Boundary = "all",
+                 sharpness: np.ndarray | None = None):
         levels = _check_options(levels, boundary)
         if isinstance(mesh, PolyMesh):
             topo, corners, offsets = mesh.topology, mesh.corners, mesh.offsets
+            if sharpness is None and mesh.crease_values.size:
+                sharpness = mesh.edge_sharpness
         elif isinstance(mesh, Topology):
             topo, corners = mesh, mesh.he_origin
             offsets = np.concatenate([[0], np.cumsum(np.bincount(mesh.he_face, minlength=mesh.n_faces))])
@@ -415,6 +656,7 @@ class CatmullClark:
             raise InputError(f"CatmullClark needs a PolyMesh or Topology, got {type(mesh).__name__}")
         if topo.n_faces == 0:
             raise TopologyError("cannot subdivide a mesh without faces")
+        s = _check_sharpness(sharpness, topo)
         n_out = len(corners) * 4 ** (levels - 1) if levels else topo.n_faces
         if n_out > MAX_REFINED_FACES:
             raise ConfigError(
@@ -428,14 +670,22 @@ class CatmullClark:
         level, refine = base, None  # composed right to left: one sparse product per level, then the limit
         for k in range(max(levels, 1)):
             if k:
-                level = _refined_level(level)
+                finer = _refined_level(level)
+                if s is not None:
+                    s = _refined_sharpness(level.topo, finer.topo, s)
+                level = finer
             layout = _VertexLayout(level, boundary, generic=not level.quads)
             step = _step(level, layout)
+            if s is not None:
+                step = _creased_step(level, layout, step, s)
             refine = step if refine is None else step @ refine
         if not level.quads:
             layout = _VertexLayout(level, boundary, generic=False)
         # level 0: the limit of the level-1 vertex points (they come first), a map of the control vertices
-        limit = _limit(level, layout, vertex_points_only=levels == 0) @ refine
+        if s is None:
+            limit = _limit(level, layout, vertex_points_only=levels == 0) @ refine
+        else:
+            limit = _exact_limit(level, layout, s, boundary, levels == 0) @ refine
         self._coarse: Topology | None = None
         if levels == 0:
             refine = sp.identity(self.n_control, format="csr")

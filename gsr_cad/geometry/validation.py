@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import TopologyError
-from .polymesh import PolyMesh
+from .polymesh import SHARPNESS_INFINITE, PolyMesh
 from .topology import Topology
 
 DEGENERATE_AREA = 1e-12
@@ -108,7 +108,8 @@ def mesh_report(mesh: PolyMesh) -> dict[str, Any]:
 
     Keys: vertices, faces, edges, boundary_edges, unreferenced_vertices, triangles, quads, ngons,
     components, euler_characteristic, closed, manifold, oriented, genus (closed, connected, valid
-    meshes only, else None), valid, problem (validate_mesh's reason or None).
+    meshes only, else None), creased_edges (edges with sharpness > 0), sharp_edges (infinitely sharp ones),
+    valid, problem (validate_mesh's reason or None).
     """
     sizes = mesh.face_sizes
     used = np.bincount(mesh.corners, minlength=mesh.n_vertices) > 0
@@ -146,6 +147,8 @@ def mesh_report(mesh: PolyMesh) -> dict[str, Any]:
         "manifold": bool(manifold),
         "oriented": bool(oriented),
         "genus": (2 - chi) // 2 if (problem is None and closed and components == 1) else None,
+        "creased_edges": int(mesh.crease_values.size),
+        "sharp_edges": int(np.count_nonzero(mesh.crease_values >= SHARPNESS_INFINITE)),
         "valid": problem is None,
         "problem": problem,
     })

@@ -1,4 +1,5 @@
-"""The seven surface modelling ops (letters V E L B I F S) on a closed polygon mesh.
+"""The seven surface modelling ops of the paper (letters V E L B I F S) on a closed polygon mesh, the crease
+ops C and R (edge sharpness) and the hole op H (not in the paper).
 
 Each op is a frozen dataclass registered by name around one pure function of
 :mod:`gsr_cad.ops.mesh_kernel`, ``PolyMesh -> PolyMesh``; an op that cannot apply, or would leave a
@@ -35,6 +36,19 @@ face ``f`` having corners ``c_0 .. c_{k-1}``:
   ``segments=1``, ``profile=0.5``). Corners between the edge and its neighbours must lie in
   ``[15, 165]`` degrees and be convex; otherwise Blender builds something else and the op is invalid.
 
+* H ``hole(face_a, face_b)``: removes two facing faces with as many corners and bridges their rims with
+  quads (a through-hole, genus + 1; see :func:`~gsr_cad.ops.mesh_kernel.hole` for the pairing and order).
+* C ``crease(edge, sharpness)``: sets the OpenSubdiv sharpness of an interior edge (``0`` smooth, ``10``
+  infinitely sharp; Blender's crease is ``sqrt(sharpness / 10)``); nothing moves or is renumbered.
+  R ``crease_rim(face, sharpness)``: the same on every interior edge of a face's rim (one designer action
+  for a sharp cap).
+
+Creases are carried through the other ops (:attr:`PolyMesh.creases` by vertex pair): an edge whose two
+vertices still share an edge keeps its sharpness (old vertices keep their indices). E: each cap edge also
+takes the sharpness of the rim edge it was extruded from (Blender copies the edge); I: the inner edges are
+smooth; L: both halves of a cut edge keep its sharpness (Blender's edge split copies it); B: the bevelled
+edge's sharpness is dropped, the edges at its ends keep theirs on their shortened edge.
+
 :func:`random_op` draws ops with parameters scaled by the target's bounding-box diagonal (see
 :class:`OpRanges`) and :func:`perturb_op` nudges one (the surface GA's specific mutation).
 """
@@ -43,19 +57,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
 
 from ..errors import ConfigError, InputError, OpError
-from ..geometry.polymesh import PolyMesh
+from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh
 from . import mesh_kernel as K
 from .base import Op, register
 from .mesh_conn import mesh_view
 
 __all__ = [
-    "Bevel", "EdgeLoop", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
-    "TranslateFace", "TranslateVertex", "bevel", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
+    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "CreaseRim", "EdgeLoop", "Hole", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
+    "TranslateFace", "TranslateVertex", "bevel", "crease", "crease_rim", "hole", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
     "scale", "translate_face", "translate_vertex",
 ]
 
@@ -66,6 +81,9 @@ bevel = K.bevel
 inset = K.inset
 translate_face = K.translate_face
 scale = K.scale
+crease = K.crease
+crease_rim = K.crease_rim
+hole = K.hole
 
 
 def _element(value, what: str) -> int:
@@ -101,12 +119,23 @@ def _positive(value, what: str) -> float:
     return _number(value, what, positive=True)
 
 
+def _sharpness(value, what: str) -> float:
+    x = _number(value, what)
+    if not 0.0 <= x <= SHARPNESS_INFINITE:
+        raise InputError(f"{what} must lie in [0, {SHARPNESS_INFINITE:g}], got {value!r}")
+    return x
+
+
 def _fmt(x: float) -> str:
     return f"{x:.6g}"
 
 
-_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "delta": _vector, "distance": _number,
-                 "offset": _positive, "thickness": _positive, "factor": _positive}
+def _sharp_text(s: float) -> str:
+    return "infinitely sharp" if s >= SHARPNESS_INFINITE else f"sharpness {_fmt(s)}"
+
+
+_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "face_a": _element, "face_b": _element, "delta": _vector, "distance": _number,
+                 "offset": _positive, "thickness": _positive, "factor": _positive, "sharpness": _sharpness}
 """How :class:`MeshOp` normalises each op field, by field name (InputError on a malformed value)."""
 
 
@@ -243,9 +272,63 @@ class Scale(MeshOp):
         return f"scale by {_fmt(self.factor)}"
 
 
+@register
+@dataclasses.dataclass(frozen=True)
+class Crease(MeshOp):
+    """C: set the sharpness of interior edge ``edge`` (``0`` smooth .. ``10`` infinitely sharp)."""
+
+    name: ClassVar[str] = "crease"
+    letter: ClassVar[str] = "C"
+    edge: int
+    sharpness: float
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return crease(state, self.edge, self.sharpness)
+
+    def describe(self) -> str:
+        return f"crease edge {self.edge} ({_sharp_text(self.sharpness)})"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class CreaseRim(MeshOp):
+    """R: set the sharpness of the interior edges around face ``face``."""
+
+    name: ClassVar[str] = "crease_rim"
+    letter: ClassVar[str] = "R"
+    face: int
+    sharpness: float
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return crease_rim(state, self.face, self.sharpness)
+
+    def describe(self) -> str:
+        return f"crease the rim of face {self.face} ({_sharp_text(self.sharpness)})"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class Hole(MeshOp):
+    """H: open a through-hole between facing faces ``face_a`` and ``face_b``."""
+
+    name: ClassVar[str] = "hole"
+    letter: ClassVar[str] = "H"
+    face_a: int
+    face_b: int
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return hole(state, self.face_a, self.face_b)
+
+    def describe(self) -> str:
+        return f"hole through faces {self.face_a} and {self.face_b}"
+
+
 OPS_BY_LETTER: dict[str, type[MeshOp]] = {
     cls.letter: cls for cls in (TranslateVertex, Extrude, EdgeLoop, Bevel, Inset, TranslateFace, Scale)
 }
+"""The paper's seven ops."""
+ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "R": CreaseRim, "H": Hole}
+"""Every surface op :func:`random_op` can draw: the paper's, C, R and H."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -259,7 +342,9 @@ class OpRanges:
     * S: ``factor`` log-uniform in ``[1 / max_factor, max_factor]``;
     * B: ``offset`` uniform in ``offset`` times the shortest other edge at the edge's ends (an offset
       slides along those edges, so a longer one is always invalid);
-    * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance.
+    * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance;
+    * C, R: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``;
+    * H: the first face uniform, the second the nearest one facing it (:func:`_hole_faces`).
     """
 
     move: float = 0.1
@@ -269,13 +354,19 @@ class OpRanges:
     max_factor: float = 1.25
     offset: tuple[float, float] = (0.05, 0.6)
     thickness: tuple[float, float] = (0.05, 0.6)
+    sharpness: tuple[float, float] = (0.5, 3.0)
+    infinite: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("move", "extrude", "face_move"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0.0):
                 raise ConfigError(f"op range {name} must be a finite number >= 0, got {getattr(self, name)!r}")
-        if not 0.0 <= self.inward <= 1.0:
-            raise ConfigError(f"op range inward must lie in [0, 1], got {self.inward!r}")
+        for name in ("inward", "infinite"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ConfigError(f"op range {name} must lie in [0, 1], got {getattr(self, name)!r}")
+        lo, hi = self.sharpness
+        if not 0.0 < lo <= hi <= SHARPNESS_INFINITE:
+            raise ConfigError(f"op range sharpness must satisfy 0 < low <= high <= 10, got {(lo, hi)!r}")
         if not (math.isfinite(self.max_factor) and self.max_factor >= 1.0):
             raise ConfigError(f"op range max_factor must be a finite number >= 1, got {self.max_factor!r}")
         for name in ("offset", "thickness"):
@@ -315,14 +406,39 @@ def _face_inradius(P: list[list[float]], cyc: tuple[int, ...]) -> float:
     return best if math.isfinite(best) else 0.0
 
 
+def _hole_faces(view, face: int) -> tuple[int, int]:
+    """``face`` and its partner for a hole: the nearest face (by centroid) with as many corners, no shared
+    vertex and no edge to ``face``'s vertices that faces it across the solid (``face`` twice, an invalid op,
+    when none does)."""
+    conn = view.conn
+    cyc = conn.faces[face]
+    corners = set(cyc)
+    mine = corners | {v for u, v in conn.half if u in corners}
+    P = view.P
+    c = [sum(P[i][j] for i in cyc) / len(cyc) for j in range(3)]
+    best, partner = math.inf, face
+    for g, other in enumerate(conn.faces):
+        if len(other) != len(cyc) or mine.intersection(other) or not K.facing(view, face, g):
+            continue
+        d = math.dist(c, [sum(P[i][j] for i in other) / len(other) for j in range(3)])
+        if d < best:
+            best, partner = d, g
+    return face, partner
+
+
 def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
-              ranges: OpRanges = OpRanges()) -> MeshOp:
+              ranges: OpRanges = OpRanges(),
+              crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None,
+              crease_faces: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None) -> MeshOp:
     """A random op for ``mesh``: kind uniform over the letters in ``kinds``, element uniform, parameters
     drawn from ``ranges`` (see :class:`OpRanges`) with ``scale`` the target's bounding-box diagonal.
-    The op may still be invalid for ``mesh`` (repair drops it)."""
-    letters = [k for k in kinds if k in OPS_BY_LETTER]
+    A C op picks its edge from ``crease_edges`` (edges of ``mesh`` proposed along the target's feature
+    lines, :mod:`gsr_cad.reconstruct.features`, or a function of ``mesh`` giving them, called only for a C
+    op) when some are given; an R op picks its face from ``crease_faces`` (the same kinds of proposals) with
+    probability 3/4 when some are given. The op may still be invalid for ``mesh`` (repair drops it)."""
+    letters = [k for k in kinds if k in ALL_OPS_BY_LETTER]
     if not letters or len(letters) != len(kinds):
-        raise ConfigError(f"op kinds must be letters from {''.join(OPS_BY_LETTER)}, got {kinds!r}")
+        raise ConfigError(f"op kinds must be letters from {''.join(ALL_OPS_BY_LETTER)}, got {kinds!r}")
     if not (math.isfinite(scale) and scale > 0.0):
         raise ConfigError(f"op scale must be a finite positive number, got {scale!r}")
     kind = letters[int(rng.integers(len(letters)))]
@@ -333,6 +449,8 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
         return TranslateVertex(vertex, tuple((rng.uniform(-1.0, 1.0, 3) * ranges.move * scale).tolist()))
     view = mesh_view(mesh)  # the apply that follows reuses it
     conn = view.conn
+    if kind == "H":
+        return Hole(*_hole_faces(view, int(rng.integers(conn.n_faces))))
     if kind in "EIF":
         face = int(rng.integers(conn.n_faces))
         if kind == "E":
@@ -342,6 +460,18 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
             return TranslateFace(face, float(rng.uniform(-1.0, 1.0) * ranges.face_move * scale))
         size = _face_inradius(view.P, conn.faces[face]) or scale  # a zero-area face: any size
         return Inset(face, float(rng.uniform(*ranges.thickness) * size))
+    if kind in "CR":
+        sharpness = (SHARPNESS_INFINITE if rng.random() < ranges.infinite else float(rng.uniform(*ranges.sharpness)))
+        if kind == "R":
+            proposed = crease_faces(mesh) if callable(crease_faces) else crease_faces
+            faces = [f for f in (proposed or ()) if 0 <= f < conn.n_faces]
+            if faces and rng.random() < 0.75:
+                return CreaseRim(int(faces[int(rng.integers(len(faces)))]), sharpness)
+            return CreaseRim(int(rng.integers(conn.n_faces)), sharpness)
+        proposed = crease_edges(mesh) if callable(crease_edges) else crease_edges
+        edges = [e for e in (proposed or ()) if 0 <= e < len(conn.edges)]
+        edge = int(edges[int(rng.integers(len(edges)))]) if edges else int(rng.integers(len(conn.edges)))
+        return Crease(edge, sharpness)
     edge = int(rng.integers(len(conn.edges)))
     if kind == "L":
         return EdgeLoop(edge)
@@ -353,8 +483,9 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
     """The same kind of op on the same element with its parameters nudged (the surface GA's specific mutation).
 
     Lengths (V delta per axis, E and F distances) move by ``N(0, (rel * scale)^2)``; positive amounts
-    (B offset, I thickness) are multiplied by ``exp(N(0, log_sigma^2))`` and the S factor by
-    ``exp(N(0, rel^2))``, so they stay positive. L has no parameter and comes back unchanged.
+    (B offset, I thickness, a semi-sharp C sharpness, at most 10) are multiplied by ``exp(N(0, log_sigma^2))``
+    and the S factor by ``exp(N(0, rel^2))``, so they stay positive. L, H and an infinitely sharp C come back
+    unchanged.
     """
     if not (math.isfinite(scale) and scale > 0.0):
         raise ConfigError(f"perturbation scale must be a finite positive number, got {scale!r}")
@@ -373,8 +504,13 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
         return Inset(op.face, op.thickness * float(np.exp(rng.normal(0.0, log_sigma))))
     if isinstance(op, Scale):
         return Scale(op.factor * float(np.exp(rng.normal(0.0, rel))))
-    if isinstance(op, EdgeLoop):
+    if isinstance(op, (EdgeLoop, Hole)):
         return op
+    if isinstance(op, (Crease, CreaseRim)):
+        if op.sharpness >= SHARPNESS_INFINITE:
+            return op
+        return dataclasses.replace(op, sharpness=min(op.sharpness * float(np.exp(rng.normal(0.0, log_sigma))),
+                                                     SHARPNESS_INFINITE))
     raise InputError(f"perturb_op knows only surface ops, got {type(op).__name__}")
 
 

@@ -3,7 +3,7 @@
 GA replays apply thousands of short op sequences to small meshes, where dict and list lookups beat
 numpy's per-call overhead. :class:`MeshConn` holds what the ops need (face cycles, the face owning each
 directed edge, edges numbered exactly as :class:`~gsr_cad.geometry.topology.Topology` numbers them) and is
-kept in a small LRU cache keyed by :attr:`PolyMesh.topology_key`, so ops that only move vertices
+kept in a small LRU cache keyed by :attr:`PolyMesh.connectivity_key`, so ops that only move vertices
 (V, F, S) and repeated prefixes never rebuild it. :class:`MeshView` keeps, for recently seen meshes, the
 plain-float positions and the face Newell vectors computed so far, so that the next op of a replay neither
 converts the positions again nor recomputes the faces it did not change.
@@ -143,7 +143,7 @@ serves replays; the rest is reuse across genomes that share prefixes."""
 
 
 def cached_connectivity(key: tuple) -> MeshConn | None:
-    """The cached :class:`MeshConn` of a :attr:`PolyMesh.topology_key`, or None."""
+    """The cached :class:`MeshConn` of a :attr:`PolyMesh.connectivity_key`, or None."""
     return _CACHE.get(key)
 
 
@@ -153,7 +153,7 @@ def cache_connectivity(key: tuple, conn: MeshConn) -> None:
 
 
 def face_arrays(n_vertices: int, faces: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """Read-only ``(corners, offsets)`` of ``faces`` and the :attr:`PolyMesh.topology_key` they give."""
+    """Read-only ``(corners, offsets)`` of ``faces`` and the :attr:`PolyMesh.connectivity_key` they give."""
     offsets = np.fromiter(accumulate(map(len, faces), initial=0), np.int64, len(faces) + 1)
     corners = np.fromiter(chain.from_iterable(faces), np.int64, int(offsets[-1]))
     corners.setflags(write=False)
@@ -163,7 +163,7 @@ def face_arrays(n_vertices: int, faces: list[tuple[int, ...]]) -> tuple[np.ndarr
 
 def connectivity(mesh: PolyMesh) -> MeshConn:
     """The (cached) :class:`MeshConn` of ``mesh``; raises TopologyError for a non-manifold mesh."""
-    key = mesh.topology_key
+    key = mesh.connectivity_key
     conn = _CACHE.get(key)
     if conn is None:
         conn = MeshConn(mesh.faces, mesh.n_vertices)

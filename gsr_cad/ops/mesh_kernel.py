@@ -22,7 +22,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from ..errors import OpError
-from ..geometry.polymesh import PolyMesh
+from ..geometry.polymesh import SHARPNESS_INFINITE, Creases, PolyMesh, sorted_creases
 from .mesh_conn import (MeshConn, MeshView, cache_connectivity, cached_connectivity, face_arrays, mesh_view,
                         remember_view)
 
@@ -199,19 +199,38 @@ def _moved(view: MeshView, P: list[list[float]], moved: Iterable[int], newell: l
     for c in moved:
         vertices[c] = P[c]
     vertices.setflags(write=False)
-    out = PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.topology_key)
+    out = PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key,
+                            mesh._creases)
     remember_view(MeshView(out, P, newell, view.conn, None))
     return out
 
 
+def _carried(mesh: PolyMesh, conn: MeshConn, inherit: dict[tuple[int, int], tuple[int, int]],
+             drop: tuple[int, int] | None) -> Creases | None:
+    """The creases of an op's result: every creased vertex pair of ``mesh`` that is still an edge of ``conn``
+    keeps its sharpness (old vertices keep their indices), except ``drop``; each new edge in ``inherit``
+    (``new pair -> old pair``) takes the sharpness of its old pair."""
+    old = mesh.creases
+    half = conn.half
+    out = {p: s for p, s in old.items() if p != drop and (p in half or p[::-1] in half)}
+    for new, src in inherit.items():
+        s = old.get(src if src[0] < src[1] else src[::-1])
+        if s and (new in half or new[::-1] in half):
+            out[new] = s
+    if not out:
+        return None
+    return sorted_creases(np.array(list(out), dtype=np.int64), np.array(list(out.values())))
+
+
 def _finish(what: str, view: MeshView, P: list[list[float]], faces: list[tuple[int, ...]], touched: list[int],
             refs: dict[int, Vec | None], diag: float, newell: list, moved: Iterable[int] = (),
-            bounds: tuple[float, ...] | None = None) -> PolyMesh:
+            bounds: tuple[float, ...] | None = None, inherit: dict[tuple[int, int], tuple[int, int]] | None = None,
+            drop: tuple[int, int] | None = None) -> PolyMesh:
     """Check and build the result of an op that changed the ``touched`` faces (and appended vertices).
 
     The connectivity comes from the cache when this face list was met before, else the input's is
     patched. Op results need no validation: every face keeps at least three corners, all on vertices of
-    ``P``, by construction.
+    ``P``, by construction. Creases are carried by :func:`_carried` (``inherit``, ``drop``).
     """
     corners, offsets, key = face_arrays(len(P), faces)
     conn = cached_connectivity(key)
@@ -230,7 +249,8 @@ def _finish(what: str, view: MeshView, P: list[list[float]], faces: list[tuple[i
     for c in moved:
         vertices[c] = P[c]
     vertices.setflags(write=False)
-    out = PolyMesh._trusted(vertices, corners, offsets, None, key)
+    creases = None if view.mesh._creases is None else _carried(view.mesh, conn, inherit or {}, drop)
+    out = PolyMesh._trusted(vertices, corners, offsets, None, key, creases)
     remember_view(MeshView(out, P, newell, conn, bounds))
     return out
 
@@ -298,7 +318,8 @@ def scale(mesh: PolyMesh, factor: float) -> PolyMesh:
     centre = mesh.bbox.mean(axis=0)
     vertices = centre + factor * (mesh.vertices - centre)
     vertices.setflags(write=False)
-    return PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.topology_key)
+    return PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key,
+                             mesh._creases)
 
 
 def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
@@ -307,11 +328,116 @@ def bbox_centre(mesh: PolyMesh) -> tuple[float, float, float]:
     return (float(c[0]), float(c[1]), float(c[2]))
 
 
+# --- C: crease ------------------------------------------------------------------------------------------
+
+def _with_sharpness(view: MeshView, pairs: list[tuple[int, int]], sharpness: float) -> PolyMesh:
+    """The view's mesh with ``sharpness`` on the sorted vertex ``pairs`` (same positions and connectivity)."""
+    mesh = view.mesh
+    creases = mesh.creases
+    creases.update(dict.fromkeys(pairs, sharpness))
+    new = sorted_creases(np.array(list(creases), dtype=np.int64), np.array(list(creases.values())))
+    out = PolyMesh._trusted(mesh.vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key, new)
+    remember_view(MeshView(out, view.P, view.newell, view.conn, view.bounds))
+    return out
+
+
+def _check_sharpness(what: str, sharpness: float) -> None:
+    if not 0.0 <= sharpness <= SHARPNESS_INFINITE:
+        raise OpError(f"{what}: the sharpness must lie in [0, {SHARPNESS_INFINITE:g}], got {sharpness!r}")
+
+
+def crease(mesh: PolyMesh, edge: int, sharpness: float) -> PolyMesh:
+    """C: set the sharpness of interior edge ``edge`` (``0`` smooth, ``10`` infinitely sharp; OpenSubdiv's
+    meaning). Positions and connectivity stay; a boundary edge (always sharp) is refused."""
+    what = f"crease {edge}"
+    _check_sharpness(what, sharpness)
+    view = mesh_view(mesh)
+    conn = view.conn
+    _index(edge, len(conn.edges), what, "edge")
+    u, v = conn.edges[edge]
+    if (v, u) not in conn.half:
+        raise OpError(f"{what}: the edge is on the boundary (always sharp)")
+    return _with_sharpness(view, [(u, v) if u < v else (v, u)], sharpness)
+
+
+def crease_rim(mesh: PolyMesh, face: int, sharpness: float) -> PolyMesh:
+    """R: set the sharpness of every interior edge of face ``face``'s rim (Blender: select the face, set the
+    crease of its edges). A face with no interior edge is refused."""
+    what = f"crease_rim {face}"
+    _check_sharpness(what, sharpness)
+    view = mesh_view(mesh)
+    conn = view.conn
+    cyc = conn.faces[_index(face, conn.n_faces, what, "face")]
+    pairs = [(u, v) if u < v else (v, u) for u, v in zip(cyc, cyc[1:] + cyc[:1]) if (v, u) in conn.half]
+    if not pairs:
+        raise OpError(f"{what}: the face has no interior edge")
+    return _with_sharpness(view, pairs, sharpness)
+
+
+# --- H: hole ---------------------------------------------------------------------------------------------
+
+def facing(view: MeshView, face_a: int, face_b: int) -> bool:
+    """Whether faces ``a`` and ``b`` of the view's mesh face each other across the solid: each lies behind
+    the other (``n_a . (c_b - c_a) < 0 < n_b . (c_b - c_a)``) and their normals are opposed (dot < -0.5)."""
+    faces = view.conn.faces
+    na, nb = _unit(_face_newell(view, face_a)), _unit(_face_newell(view, face_b))
+    if na is None or nb is None:
+        return False
+    P = view.P
+    ca = [sum(P[c][j] for c in faces[face_a]) / len(faces[face_a]) for j in range(3)]
+    cb = [sum(P[c][j] for c in faces[face_b]) / len(faces[face_b]) for j in range(3)]
+    d = _sub(cb, ca)
+    return _dot(na, d) < 0.0 < _dot(nb, d) and _dot(na, nb) < -0.5
+
+
+def hole(mesh: PolyMesh, face_a: int, face_b: int) -> PolyMesh:
+    """H: a through-hole: faces ``a`` and ``b`` (facing each other, as many corners, no shared vertex) are
+    removed and their rims bridged by quads (Blender's bridge edge loops between the two faces).
+
+    Corner ``i`` of ``a`` pairs with corner ``r - i`` of ``b`` (``b`` runs the other way round the tunnel),
+    ``r`` the rotation with the least sum of squared distances between paired corners (the first on ties);
+    bridge quad ``i`` is ``(a_i, a_{i+1}, b_{r-i-1}, b_{r-i})``. Quad 0 takes face ``a``'s index, quad 1 face
+    ``b``'s, the others are appended in order; vertices keep their indices. The genus grows by one.
+    """
+    what = f"hole {face_a} {face_b}"
+    view = mesh_view(mesh)
+    conn = view.conn
+    _index(face_a, conn.n_faces, what, "face")
+    _index(face_b, conn.n_faces, what, "face")
+    A, B = conn.faces[face_a], conn.faces[face_b]
+    k = len(A)
+    if face_a == face_b or len(B) != k or set(A) & set(B):
+        raise OpError(f"{what}: the faces must differ, have as many corners and share no vertex")
+    if not facing(view, face_a, face_b):
+        raise OpError(f"{what}: the faces do not face each other across the solid")
+    P = view.P
+
+    def cost(r: int) -> float:
+        return sum(sum((P[A[i]][j] - P[B[(r - i) % k]][j]) ** 2 for j in range(3)) for i in range(k))
+
+    r = min(range(k), key=cost)
+    quads = [(A[i], A[(i + 1) % k], B[(r - i - 1) % k], B[(r - i) % k]) for i in range(k)]
+    half = conn.half
+    for i in range(k):
+        u, v = A[i], B[(r - i) % k]
+        if (u, v) in half or (v, u) in half:
+            raise OpError(f"{what}: vertices {u} and {v} are already joined by an edge")
+    faces = list(conn.faces)
+    faces[face_a], faces[face_b] = quads[0], quads[1]
+    faces.extend(quads[2:])
+    touched = [face_a, face_b, *range(conn.n_faces, conn.n_faces + k - 2)]
+    newell = view.newell + [None] * (k - 2)
+    newell[face_a] = newell[face_b] = None
+    return _finish(what, view, list(P), faces, touched, {}, _diagonal(view), newell, (), view.bounds)
+
+
 # --- E, I: a face on new vertices plus a ring of quads -----------------------------------------------------
 
-def _cap_and_ring(what: str, view: MeshView, face: int, new_points: list[list[float]], ref: Vec | None) -> PolyMesh:
+def _cap_and_ring(what: str, view: MeshView, face: int, new_points: list[list[float]], ref: Vec | None,
+                  cap_creases: bool) -> PolyMesh:
     """E and I: ``face`` moved onto the appended ``new_points``, joined to its old rim by one quad per edge
-    (checked; ``ref``, when given, is the normal the new faces must not flip against)."""
+    (checked; ``ref``, when given, is the normal the new faces must not flip against). The old rim keeps its
+    creases; with ``cap_creases`` each new cap edge takes the sharpness of the rim edge it came from."""
     cyc = view.conn.faces[face]
     k = len(cyc)
     base = len(view.P)
@@ -323,8 +449,11 @@ def _cap_and_ring(what: str, view: MeshView, face: int, new_points: list[list[fl
     faces.extend((cyc[i], cyc[(i + 1) % k], new[(i + 1) % k], new[i]) for i in range(k))
     touched = [face, *range(first, first + k)]
     refs = {} if ref is None else dict.fromkeys(touched, ref)
+    inherit = None
+    if cap_creases and view.mesh._creases is not None:
+        inherit = {(new[i], new[(i + 1) % k]): (cyc[i], cyc[(i + 1) % k]) for i in range(k)}
     return _finish(what, view, view.P + new_points, faces, touched, refs, diag, view.newell + [None] * k, (),
-                   _extended(view.bounds, new_points))
+                   _extended(view.bounds, new_points), inherit)
 
 
 def extrude(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
@@ -333,7 +462,7 @@ def extrude(mesh: PolyMesh, face: int, distance: float) -> PolyMesh:
     view, cyc, n = _face_op(mesh, face, what)
     P = view.P
     dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
-    return _cap_and_ring(what, view, face, [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc], None)
+    return _cap_and_ring(what, view, face, [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cyc], None, True)
 
 
 def inset_points(P: list[list[float]], cyc: Sequence[int], thickness: float, n: Vec,
@@ -366,7 +495,7 @@ def inset(mesh: PolyMesh, face: int, thickness: float) -> PolyMesh:
     if not thickness > 0.0:
         raise OpError(f"{what}: the thickness must be positive")
     view, cyc, n = _face_op(mesh, face, what)
-    return _cap_and_ring(what, view, face, inset_points(view.P, cyc, thickness, n, what), n)
+    return _cap_and_ring(what, view, face, inset_points(view.P, cyc, thickness, n, what), n, False)
 
 
 # --- L: edge loop ----------------------------------------------------------------------------------------
@@ -416,6 +545,9 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     ring, quads, ends, _ = edge_ring(conn, edge)
     if not quads:
         raise OpError(f"{what}: the edge has no quad to cut across")
+    ends_of_ring = [v for e in ring for v in conn.edges[e]]
+    if len(set(ends_of_ring)) != len(ends_of_ring):  # Blender's subdivide_edgering builds something else
+        raise OpError(f"{what}: the edge ring touches itself at a vertex")
     diag = _diagonal(view)
     faces = list(conn.faces)
     refs = {f: _unit(_face_newell(view, f)) for f, _ in quads}
@@ -453,7 +585,14 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
         touched.append(f)
     touched = list(dict.fromkeys(touched))
     newell = view.newell + [None] * (len(faces) - len(conn.faces))
-    return _finish(what, view, P, faces, touched, refs, diag, newell, (), _extended(view.bounds, P[base:]))
+    inherit = None
+    if view.mesh._creases is not None:
+        inherit = {}
+        for e in ring:
+            u, v = conn.edges[e]
+            m = mid[(u, v)]
+            inherit[(min(u, m), max(u, m))] = inherit[(min(v, m), max(v, m))] = (u, v)
+    return _finish(what, view, P, faces, touched, refs, diag, newell, (), _extended(view.bounds, P[base:]), inherit)
 
 
 # --- B: bevel --------------------------------------------------------------------------------------------
@@ -594,4 +733,9 @@ def bevel(mesh: PolyMesh, edge: int, offset: float) -> PolyMesh:
     newell = view.newell + [None] * (len(faces) - len(conn.faces))
     for f in (*conn.vertex_faces(a), *conn.vertex_faces(b)):
         newell[f] = None
-    return _finish(what, view, P, faces, touched, refs, diag, newell, (a, b))
+    inherit = None
+    if view.mesh._creases is not None:  # an edge at an end, now ending at its boundary vertex, keeps its sharpness
+        inherit = {(min(i, x), max(i, x)): (end, x) for end, index in ((a, index_a), (b, index_b))
+                   for x, i in index.items()}
+    return _finish(what, view, P, faces, touched, refs, diag, newell, (a, b), None, inherit,
+                   (min(a, b), max(a, b)))

@@ -68,8 +68,10 @@ from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
+from .features import CreaseProposals
 from .inputs import SurfaceTarget, load_template, surface_target, validate_template
 from .result import Result
+from .templates import fitted_template, genus_metrics, target_genus
 
 CUBE_LIMIT_HALF = 34.0 / 81.0
 """Half-extent of the limit surface of a unit cube (its face centres): a cube of side ``s`` has a limit
@@ -99,9 +101,13 @@ def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
 
 def make_template(template: str | os.PathLike[str] | PolyMesh | None, target: SurfaceTarget,
                   config: SurfaceConfig) -> PolyMesh:
-    """``"cube"`` (or None): :func:`box_template`; a PolyMesh or a mesh file: checked to be a valid quad mesh."""
+    """``"cube"`` (or None): :func:`box_template`; ``"genus"``: the template with the target's genus
+    (:func:`~gsr_cad.reconstruct.templates.fitted_template`); a PolyMesh or a mesh file: checked to be a valid
+    quad mesh."""
     if template is None or (isinstance(template, str) and template == "cube"):
         return box_template(target, config.template_fit)
+    if isinstance(template, str) and template == "genus":
+        return fitted_template(target, target_genus(target)[0])
     if isinstance(template, PolyMesh):
         return validate_template(template)
     if isinstance(template, (str, os.PathLike)):
@@ -150,6 +156,9 @@ class SurfaceProblem:
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
+        proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
+                     if set("CR") & set(config.op_kinds) else None)
+        self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
@@ -195,7 +204,7 @@ class SurfaceProblem:
     # --- GA protocol -------------------------------------------------------------------------------------
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
         """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
-        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges)
+        return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges, *self.creases)
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         """The ops that apply (and keep the mesh within ``max_control_faces``), topped up to ``min_ops``."""
@@ -203,7 +212,7 @@ class SurfaceProblem:
         attempts = 0
         while len(kept) < self.config.min_ops and attempts < 50:
             attempts += 1
-            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges)
+            op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges, *self.creases)
             nxt = self._step(kept, state, op)
             if nxt is not None:
                 kept, state = kept + (op,), nxt
@@ -665,6 +674,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "stop_reason": run.stop_reason,
         "n_ops": len(final),
         "ops": _letters(final),
+        **genus_metrics(control, *target_genus(tgt)),
     })
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]

@@ -2,11 +2,13 @@
 
 Usage: blender -b --factory-startup --python subsurf_cases.py -- CASES.json OUT.npz
 
-CASES.json: {"meshes": {name: {"vertices": [[x, y, z], ...], "faces": [[i, j, k, ...], ...]}},
+CASES.json: {"meshes": {name: {"vertices": [[x, y, z], ...], "faces": [[i, j, k, ...], ...],
+"creases": [[a, b, crease], ...] (optional: Blender's edge crease in [0, 1] on edge a-b)}},
 "runs": [[name, levels, use_limit_surface, boundary_smooth], ...]}. The name "suzanne" means
 Blender's own monkey (bpy.ops.mesh.primitive_monkey_add); its control mesh is written too.
-OUT.npz holds for every mesh ``NAME/control/vertices|sizes|corners`` and for every run
-``NAME/LEVELS/LIMIT/BOUNDARY/vertices|sizes|corners`` of the evaluated mesh.
+OUT.npz holds for every mesh ``NAME/control/vertices|sizes|corners|creases`` (creases: ``(a, b, crease)``
+rows as Blender stored them) and for every run ``NAME/LEVELS/LIMIT/BOUNDARY/vertices|sizes|corners`` of the
+evaluated mesh (the modifier uses the creases).
 """
 
 import json
@@ -37,6 +39,9 @@ def make_object(name, spec):
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata([tuple(v) for v in spec["vertices"]], [], [tuple(f) for f in spec["faces"]])
     mesh.update()
+    index = {tuple(sorted(e.vertices)): e.index for e in mesh.edges}
+    for a, b, crease in spec.get("creases", ()):
+        mesh.edges[index[tuple(sorted((a, b)))]].crease = crease
     obj = bpy.data.objects.new(name, mesh)
     bpy.context.scene.collection.objects.link(obj)
     return obj
@@ -55,6 +60,8 @@ def main():
         objects[name] = obj
         for key, arr in zip(("vertices", "sizes", "corners"), mesh_arrays(obj.data), strict=True):
             out[f"{name}/control/{key}"] = arr
+        out[f"{name}/control/creases"] = np.array([[*e.vertices, e.crease] for e in obj.data.edges if e.crease > 0],
+                                                  dtype=np.float64).reshape(-1, 3)
     for name, levels, limit, boundary in cases["runs"]:
         obj = objects[name]
         obj.modifiers.clear()
@@ -64,7 +71,7 @@ def main():
         mod.use_limit_surface = limit
         mod.quality = 10
         mod.boundary_smooth = boundary
-        mod.use_creases = False
+        mod.use_creases = True
         depsgraph = bpy.context.evaluated_depsgraph_get()
         evaluated = obj.evaluated_get(depsgraph)
         mesh = evaluated.to_mesh()

@@ -1,0 +1,131 @@
+"""Creases and holes benchmark (issue 13): targets with sharp edges and through-holes, reconstructed with the
+crease ops (C, R) and the genus-seeded template, each within a time budget.
+
+Targets (built here, no download): ``cylinder`` (trimesh's ``creation.cylinder``: flat caps, sharp rims),
+``nut`` (a hexagonal prism with a round hole), ``torus`` (``creation.torus``), ``ring`` (a thin-walled
+``creation.annulus``) and ``frame`` (a slab with three square windows). Columns: the target's genus and the
+control mesh's, and the four two-sided distances over the bounding-box diagonal (target points to the
+limit mesh: mean and max; limit vertices to the target: mean and max), the op letters and the seconds.
+
+    python benchmarks/genus_creases.py                       # everything, 300 s each -> results/genus_creases.md
+    python benchmarks/genus_creases.py --targets cylinder --seconds 60
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gsr_cad.atomic import write_text
+from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.reconstruct.surface import reconstruct_surface
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _common import load_average  # noqa: E402
+
+
+def _grid_solid(mask: np.ndarray, h: float, height: float) -> PolyMesh:
+    """The closed quad surface of a 2D cell ``mask`` (cells ``h`` wide) extruded by ``height``, outward."""
+    nx, ny = mask.shape
+    vid = {}
+
+    def v(i, j, k):
+        return vid.setdefault((i, j, k), len(vid))
+
+    faces = []
+    for i in range(nx):
+        for j in range(ny):
+            if not mask[i, j]:
+                continue
+            faces.append((v(i, j, 1), v(i + 1, j, 1), v(i + 1, j + 1, 1), v(i, j + 1, 1)))  # top
+            faces.append((v(i, j, 0), v(i, j + 1, 0), v(i + 1, j + 1, 0), v(i + 1, j, 0)))  # bottom
+            for di, dj, quad in ((1, 0, ((i + 1, j), (i + 1, j + 1))), (-1, 0, ((i, j + 1), (i, j))),
+                                 (0, 1, ((i + 1, j + 1), (i, j + 1))), (0, -1, ((i, j), (i + 1, j)))):
+                a, b = i + di, j + dj
+                if 0 <= a < nx and 0 <= b < ny and mask[a, b]:
+                    continue
+                (p, q), (r, s) = quad
+                faces.append((v(p, q, 0), v(r, s, 0), v(r, s, 1), v(p, q, 1)))
+    pts = np.array(list(vid), dtype=float) * [h, h, height]
+    return PolyMesh.from_faces(pts - pts.mean(axis=0), faces)
+
+
+def _ring_solid(outer: np.ndarray, inner: np.ndarray, height: float) -> PolyMesh:
+    """A prism between an outer and an inner polygon (same vertex count, same angular order), height ``height``."""
+    n = len(outer)
+    ring = [outer, inner]
+    pts = np.vstack([np.c_[p, np.full(n, z)] for z in (0.0, height) for p in ring])  # 0 outer-bottom .. 3 inner-top
+    ob, ib, ot, it = (np.arange(n) + k * n for k in range(4))
+    faces = []
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(ot[i], ot[j], it[j], it[i]), (ob[j], ob[i], ib[i], ib[j]),  # top, bottom
+                  (ob[i], ob[j], ot[j], ot[i]), (ib[j], ib[i], it[i], it[j])]  # outer wall, inner wall
+    return PolyMesh.from_faces(pts - [0, 0, height / 2], faces)
+
+
+def targets() -> dict[str, PolyMesh]:
+    import trimesh
+
+    def tri(m):
+        return PolyMesh.from_faces(m.vertices, m.faces)
+
+    t = np.linspace(0, 2 * np.pi, 37)[:-1]
+    hexagon = np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 7)[:-1]])
+    k = np.floor(t / (np.pi / 3)).astype(int) % 6
+    frac = (t % (np.pi / 3)) / (np.pi / 3)
+    hex_outline = hexagon[k] * (1 - frac)[:, None] + hexagon[(k + 1) % 6] * frac[:, None]
+    mask = np.ones((9, 4), dtype=bool)
+    for i in (1, 4, 7):
+        mask[i, 1:3] = False
+    return {
+        "cylinder": tri(trimesh.creation.cylinder(radius=1.0, height=2.0)),
+        "nut": _ring_solid(hex_outline, 0.5 * np.c_[np.cos(t), np.sin(t)], 0.8),
+        "torus": tri(trimesh.creation.torus(1.0, 0.35)),
+        "ring": tri(trimesh.creation.annulus(0.85, 1.0, 0.4, sections=64)),
+        "frame": _grid_solid(mask, 0.4, 0.3),
+    }
+
+
+def run(name: str, target: PolyMesh, seconds: float, seed: int) -> dict:
+    started = time.perf_counter()
+    result = reconstruct_surface(target, template="genus", op_kinds="VELBIFSCR", seed=seed, max_seconds=seconds)
+    m = result.metrics
+    return {"name": name, "target_genus": m["target_genus"], "result_genus": m["result_genus"],
+            "to_fit_mean": m["mean_distance"], "to_fit_max": m["max_distance"],
+            "to_target_mean": m["mean_distance_to_target"], "to_target_max": m["max_distance_to_target"],
+            "ops": m["ops"], "seconds": time.perf_counter() - started}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--targets", nargs="*", default=None, help="target names (default: all)")
+    parser.add_argument("--seconds", type=float, default=300.0, help="search budget per target (s)")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "genus_creases.md"))
+    args = parser.parse_args(argv)
+    available = targets()
+    names = args.targets or list(available)
+    unknown = sorted(set(names) - set(available))
+    if unknown:
+        print(f"error: unknown targets {', '.join(unknown)} (known: {', '.join(available)})", file=sys.stderr)
+        return 2
+    lines = [f"# Creases and holes (budget {args.seconds:g} s per target, seed {args.seed}, load {load_average():.1f})",
+             "", "| target | genus (target / result) | target->fit mean | max | fit->target mean | max | ops | s |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name in names:
+        r = run(name, available[name], args.seconds, args.seed)
+        lines.append(f"| {name} | {r['target_genus']} / {r['result_genus']} | {r['to_fit_mean']:.2e} | "
+                     f"{r['to_fit_max']:.2e} | {r['to_target_mean']:.2e} | {r['to_target_max']:.2e} | "
+                     f"{r['ops']} | {r['seconds']:.0f} |")
+        print(lines[-1], flush=True)
+    write_text(args.out, "\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

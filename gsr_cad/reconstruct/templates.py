@@ -1,0 +1,205 @@
+"""Genus-``n`` templates and the genus of a target.
+
+:func:`genus_template` builds, with the surface ops themselves, a box with ``n`` through-holes in a row:
+``n - 1`` edge loops cut the box into ``n`` equal strips along x, every top (+z) and bottom (-z) face is
+inset, and each bottom face is bridged to the top face above it (the hole op H). :func:`fitted_template`
+turns it so that the holes run along the axis the target's own holes run along (the axis with the most empty
+columns through its voxelised solid, else its thinnest one), the row along the longest other axis, and
+scales it so that its limit surface spans the target's bounding box.
+
+:func:`target_genus` estimates the genus: exactly from the Euler characteristic ``V - E + F`` of a closed
+mesh target (coincident vertices welded first; ``genus = components - chi / 2``); for a cloud or an open
+mesh from a voxel solid: the target's points (a mesh's triangles sampled) mark the cells of a grid, the marked
+shell is closed by one dilation and its cavities filled, and ``genus = components - chi`` of that cubical
+complex. The voxel estimate closes holes narrower than about three cells (``resolution`` cells along the
+longest axis), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
+in :func:`genus_metrics`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import ConfigError
+from ..geometry.polymesh import PolyMesh, unit_cube
+from ..geometry.subdivision import get_catmull_clark
+from ..ops.mesh import edge_loop, hole, inset
+from .inputs import SurfaceTarget
+
+MAX_TEMPLATE_GENUS = 8
+VOXEL_RESOLUTION = 48
+_SAMPLES = 60_000
+_SEED = 1313
+
+
+def genus_template(genus: int) -> PolyMesh:
+    """A box ``genus`` long in x (unit strips), unit in y and z, with one through-hole along z per strip
+    (the unit cube for genus 0); built with the ops L, I and H, so every face is a quad."""
+    if isinstance(genus, bool) or not isinstance(genus, (int, np.integer)) or not 0 <= genus <= MAX_TEMPLATE_GENUS:
+        raise ConfigError(f"template genus must be a whole number in [0, {MAX_TEMPLATE_GENUS}], got {genus!r}")
+    mesh = unit_cube()
+    if genus == 0:
+        return mesh
+    for _ in range(genus - 1):  # cut the strip holding vertex 0 across x
+        edges = mesh.topology.edges
+        v = mesh.vertices
+        along_x = np.flatnonzero((edges == 0).any(axis=1) & np.all(np.isclose(v[edges[:, 0], 1:], v[edges[:, 1], 1:]),
+                                                                     axis=1))
+        mesh = edge_loop(mesh, int(along_x[0]))
+    xs = np.unique(mesh.vertices[:, 0])
+    v = mesh.vertices.copy()
+    v[:, 0] = np.searchsorted(xs, v[:, 0]) - genus / 2.0
+    mesh = mesh.with_vertices(v)
+    normals, centroids = mesh.face_normals, mesh.face_centroids
+    bottom = [int(f) for f in np.flatnonzero(normals[:, 2] < -0.99)]
+    top = [int(f) for f in np.flatnonzero(normals[:, 2] > 0.99)]
+    pairs = [(f, min(top, key=lambda g: abs(centroids[g, 0] - centroids[f, 0]))) for f in bottom]
+    for f in bottom + top:
+        mesh = inset(mesh, f, 0.25)  # the inner face keeps the index
+    for f, g in pairs:
+        mesh = hole(mesh, f, g)
+    return mesh
+
+
+# --- genus of a target ---------------------------------------------------------------------------------------
+
+def _welded(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Triangles on welded vertices (coincident within 1e-9 of the diagonal), degenerate ones dropped."""
+    diag = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
+    _, index = np.unique(np.round(points / (1e-9 * diag)), axis=0, return_inverse=True)
+    tri = index.ravel()[faces]
+    keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])
+    return tri[keep]
+
+
+def mesh_genus(points: np.ndarray, faces: np.ndarray) -> int | None:
+    """Genus of a closed triangle mesh from its Euler characteristic (summed over its components), or None when
+    it is open or not edge-manifold."""
+    tri = _welded(np.asarray(points, dtype=np.float64), np.asarray(faces, dtype=np.int64).reshape(-1, 3))
+    if not len(tri):
+        return None
+    pairs = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    edges, counts = np.unique(pairs, axis=0, return_counts=True)
+    if np.any(counts != 2):
+        return None
+    used = np.unique(tri)
+    n = int(used.max()) + 1
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    components = len(np.unique(labels[used]))
+    chi = len(used) - len(edges) + len(tri)
+    return int(components - chi // 2)
+
+
+def _surface_samples(points: np.ndarray, faces: np.ndarray | None) -> np.ndarray:
+    if faces is None:
+        return points
+    rng = np.random.default_rng(_SEED)
+    a, b, c = (points[faces[:, i]] for i in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    if area.sum() <= 0:
+        return points
+    pick = rng.choice(len(faces), _SAMPLES, p=area / area.sum())
+    u, w = rng.random((2, _SAMPLES))
+    flip = u + w > 1
+    u, w = np.where(flip, 1 - u, u), np.where(flip, 1 - w, w)
+    return np.concatenate([points, a[pick] + u[:, None] * (b - a)[pick] + w[:, None] * (c - a)[pick]])
+
+
+def voxel_solid(points: np.ndarray, faces: np.ndarray | None = None,
+                resolution: int = VOXEL_RESOLUTION) -> np.ndarray:
+    """Boolean grid (one cell of padding) of the solid the target bounds: cells holding its points, closed by
+    one dilation, cavities filled."""
+    samples = _surface_samples(np.asarray(points, dtype=np.float64), faces)
+    lo, hi = samples.min(axis=0), samples.max(axis=0)
+    h = float((hi - lo).max()) / resolution or 1.0
+    shape = np.ceil((hi - lo) / h).astype(int) + 3
+    cells = np.floor((samples - lo) / h).astype(int) + 1
+    grid = np.zeros(shape, dtype=bool)
+    grid[tuple(np.minimum(cells, shape - 2).T)] = True
+    grid = ndimage.binary_dilation(grid, structure=ndimage.generate_binary_structure(3, 3))
+    return ndimage.binary_fill_holes(grid)
+
+
+def _euler(solid: np.ndarray) -> int:
+    """Euler characteristic of the union of the closed unit cubes of ``solid`` (padded by a free cell)."""
+    s = np.pad(solid, 1)
+
+    def any_of(shifts) -> int:  # grid elements touching an occupied cell among the shifted copies
+        acc = np.zeros(tuple(n - 1 for n in s.shape), dtype=bool)
+        for dx, dy, dz in shifts:
+            acc |= s[dx:s.shape[0] - 1 + dx, dy:s.shape[1] - 1 + dy, dz:s.shape[2] - 1 + dz]
+        return int(acc.sum())
+
+    corners = [(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+    vertices = any_of(corners)
+    edges = sum(any_of([c for c in corners if c[axis] == 0]) for axis in range(3))
+    faces = sum(any_of([c for c in corners if c[axis] == 0 and c[(axis + 1) % 3] == 0]) for axis in range(3))
+    return vertices - edges + faces - int(s.sum())
+
+
+def voxel_genus(solid: np.ndarray) -> int:
+    """``components - chi`` of a voxel solid without cavities (each component: 1 - its number of tunnels)."""
+    _, components = ndimage.label(solid, structure=ndimage.generate_binary_structure(3, 3))
+    return int(components - _euler(solid))
+
+
+def target_genus(target: SurfaceTarget) -> tuple[int, str]:
+    """``(genus, method)``: ``"euler"`` for a closed mesh, ``"voxels"`` otherwise (see the module docstring)."""
+    if target.faces is not None:
+        g = mesh_genus(target.points, target.faces)
+        if g is not None:
+            return g, "euler"
+    return max(voxel_genus(voxel_solid(target.points, target.faces)), 0), "voxels"
+
+
+def genus_metrics(control: PolyMesh, genus: int, method: str) -> dict[str, Any]:
+    """``target_genus``, ``target_genus_method``, ``result_genus`` (of a closed control mesh; None for an open
+    one) and, when the two differ, ``genus_warning``."""
+    topo = control.topology
+    closed = topo.is_closed
+    out: dict[str, Any] = {"target_genus": int(genus), "target_genus_method": method,
+                           "result_genus": int((2 - topo.euler_characteristic) // 2) if closed else None}
+    if closed and out["result_genus"] != out["target_genus"]:
+        out["genus_warning"] = (f"the control mesh has genus {out['result_genus']} but the target has genus "
+                                f"{out['target_genus']} ({method}): through-holes are missing or extra")
+    return out
+
+
+# --- placing a template ----------------------------------------------------------------------------------------
+
+def hole_axis(target: SurfaceTarget) -> int:
+    """The axis the target's through-holes run along: the one with the most empty columns of its voxel solid
+    that the solid surrounds (its projection covers them on every side); the thinnest axis when none is."""
+    solid = voxel_solid(target.points, target.faces)
+    best, axis = 0, int(np.argmin(np.ptp(target.points, axis=0)))
+    for k in range(3):
+        shadow = solid.any(axis=k)
+        empty = ndimage.binary_fill_holes(shadow) & ~shadow
+        if empty.sum() > best:
+            best, axis = int(empty.sum()), k
+    return axis
+
+
+def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
+    """:func:`genus_template` turned so that its holes follow :func:`hole_axis` and its row the longest other
+    axis, scaled and moved so that its level-2 limit surface spans the target's bounding box."""
+    mesh = genus_template(genus)
+    lo, hi = target.bbox
+    extent = hi - lo
+    z = hole_axis(target) if genus else int(np.argmin(extent))
+    others = [k for k in range(3) if k != z]
+    x = max(others, key=lambda k: extent[k])
+    y = next(k for k in others if k != x)
+    v = np.empty_like(mesh.vertices)
+    v[:, x], v[:, y], v[:, z] = mesh.vertices[:, 0], mesh.vertices[:, 1], mesh.vertices[:, 2]
+    limit = get_catmull_clark(mesh, 2).limit_matrix @ v
+    llo, lhi = limit.min(axis=0), limit.max(axis=0)
+    size = np.maximum(extent, 1e-6 * float(extent.max()))
+    factor = size / np.maximum(lhi - llo, 1e-12)
+    return mesh.with_vertices((v - (llo + lhi) / 2.0) * factor + (lo + hi) / 2.0)

@@ -1,0 +1,118 @@
+"""Genus-n templates, the genus of targets (Euler characteristic; voxel solid for clouds and open meshes),
+template placement and the genus metrics of a surface result."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from gsr_cad.errors import ConfigError
+from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.subdivision import get_catmull_clark
+from gsr_cad.reconstruct.inputs import SurfaceTarget
+from gsr_cad.reconstruct.surface import reconstruct_surface
+from gsr_cad.reconstruct.templates import (fitted_template, genus_metrics, genus_template, hole_axis, mesh_genus,
+                                           target_genus, voxel_genus, voxel_solid)
+
+
+def _frame(holes: int) -> trimesh.Trimesh:
+    """A slab with ``holes`` square windows in a row (boolean-free: boxes glued by vertex welding)."""
+    parts = [trimesh.creation.box(extents=(0.4, 1.6, 0.5), transform=trimesh.transformations.translation_matrix(
+        [1.2 * i - 0.6 * holes, 0, 0])) for i in range(holes + 1)]
+    parts += [trimesh.creation.box(extents=(0.8, 0.4, 0.5), transform=trimesh.transformations.translation_matrix(
+        [1.2 * i + 0.6 - 0.6 * holes, y, 0])) for i in range(holes) for y in (-0.6, 0.6)]
+    return trimesh.util.concatenate(parts)
+
+
+@pytest.mark.parametrize("genus", [0, 1, 2, 3])
+def test_genus_templates(genus):
+    m = genus_template(genus)
+    t = m.topology
+    assert t.is_closed and t.is_manifold and (2 - t.euler_characteristic) // 2 == genus
+    assert np.all(m.face_sizes == 4)
+    assert np.ptp(m.vertices, axis=0).tolist() == [max(genus, 1), 1.0, 1.0]
+    get_catmull_clark(m, 2)
+
+
+def test_genus_template_bounds():
+    for bad in (-1, 9, 1.5, True):
+        with pytest.raises(ConfigError):
+            genus_template(bad)
+
+
+@pytest.mark.parametrize("name,mesh,genus", [
+    ("sphere", trimesh.creation.icosphere(2), 0), ("box", trimesh.creation.box(), 0),
+    ("cylinder", trimesh.creation.cylinder(1.0, 2.0), 0), ("torus", trimesh.creation.torus(1.0, 0.3), 1),
+    ("ring", trimesh.creation.annulus(0.8, 1.0, 0.5), 1)])
+def test_genus_of_closed_meshes_and_clouds(name, mesh, genus):
+    assert mesh_genus(mesh.vertices, mesh.faces) == genus
+    assert target_genus(SurfaceTarget(mesh.vertices, mesh.faces)) == (genus, "euler")
+    cloud = SurfaceTarget(trimesh.sample.sample_surface(mesh, 30000)[0])
+    assert target_genus(cloud) == (genus, "voxels")
+
+
+def test_genus_by_voxels_of_a_frame_and_an_open_mesh():
+    frame = trimesh.creation.box(extents=(1, 1, 1))
+    assert voxel_genus(voxel_solid(frame.vertices, frame.faces)) == 0
+    for holes in (2, 3):
+        f = _frame(holes)
+        assert voxel_genus(voxel_solid(f.vertices, f.faces)) == holes
+    ring = trimesh.creation.annulus(0.6, 1.0, 0.5)
+    assert mesh_genus(ring.vertices, ring.faces[:-2]) is None  # open: the Euler count does not apply
+    assert target_genus(SurfaceTarget(ring.vertices, ring.faces[:-2])) == (1, "voxels")  # a gap the dilation closes
+    # a wide gap opens the shell: the estimate counts the opening as a handle
+    assert target_genus(SurfaceTarget(ring.vertices, ring.faces[:-8]))[0] == 2
+
+
+def test_hole_axis_and_placement():
+    ring = trimesh.creation.annulus(0.6, 1.0, 2.5)  # a tube taller than wide: its hole runs along z anyway
+    target = SurfaceTarget(ring.vertices, ring.faces)
+    assert hole_axis(target) == 2
+    turned = ring.copy()
+    turned.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    tt = SurfaceTarget(turned.vertices, turned.faces)
+    assert hole_axis(tt) == 1
+    template = fitted_template(tt, 1)
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices
+    np.testing.assert_allclose([limit.min(axis=0), limit.max(axis=0)], tt.bbox, atol=1e-9)
+    # the template's hole runs along y: the column through the centre is free
+    assert np.abs(limit[:, [0, 2]]).max(axis=1).min() > 0.1
+
+
+def test_genus_metrics_warn_on_a_mismatch():
+    ok = genus_metrics(genus_template(1), 1, "euler")
+    assert ok == {"target_genus": 1, "target_genus_method": "euler", "result_genus": 1}
+    bad = genus_metrics(genus_template(0), 2, "voxels")
+    assert bad["result_genus"] == 0 and "genus 0" in bad["genus_warning"] and "genus 2" in bad["genus_warning"]
+    open_box = PolyMesh.from_faces(genus_template(0).vertices, genus_template(0).faces[:5])
+    assert genus_metrics(open_box, 0, "euler")["result_genus"] is None
+
+
+def test_surface_search_reports_genus_and_seeds_with_it():
+    torus = trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12)
+    target = PolyMesh.from_faces(torus.vertices, torus.faces)
+    small = dict(generations=2, population=8, initial_population=8, n_parents=4, max_children=2, n_perturb=2,
+                 n_newcomers=2, polish_rounds=1, final_polish_rounds=1, simplify_history=False, seed=0)
+    seeded = reconstruct_surface(target, template="genus", **small)
+    m = seeded.metrics
+    assert (m["target_genus"], m["target_genus_method"], m["result_genus"]) == (1, "euler", 1)
+    assert "genus_warning" not in m
+    plain = reconstruct_surface(target, **small)
+    assert plain.metrics["result_genus"] == 0 and "genus 1" in plain.metrics["genus_warning"]
+    assert m["mean_distance"] < plain.metrics["mean_distance"]
+
+
+def test_benchmark_targets_have_their_genus(capsys):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    import genus_creases
+
+    expected = {"cylinder": 0, "nut": 1, "torus": 1, "ring": 1, "frame": 3}
+    for name, mesh in genus_creases.targets().items():
+        t = mesh.topology
+        assert t.is_closed and t.is_manifold and (2 - t.euler_characteristic) // 2 == expected[name], name
+    assert genus_creases.main(["--targets", "teapot"]) == 2
+    assert "unknown targets teapot" in capsys.readouterr().err
