@@ -227,6 +227,45 @@ class TriangleSet:
         return Closest(dist, tri, point, bary)
 
 
+LARGE_TRIANGLE = 3.0
+"""A triangle whose longest edge exceeds this many times the median is sampled inside (see
+:func:`area_samples`); smaller ones are represented by their corners."""
+
+
+def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+    """``n`` points ``(n, 3)`` drawn by area from a triangle mesh (seeded), so that a plain mean over them
+    is a mean over the surface whatever the triangles' sizes.
+
+    Each triangle's area goes to its three corners (a third each), except for triangles much larger than
+    the median (``LARGE_TRIANGLE``: long slivers of a CAD export), which are sampled uniformly inside: a
+    tessellation's vertices lie on the surface it samples while its chords do not, so the same surface
+    tessellated at any density gives the same distances, and a mean over the vertices alone would miss
+    the interior of a long triangle."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    total = float(area.sum())
+    if not total > 0:
+        raise InputError("cannot sample a mesh by area: its triangles have no area")
+    longest = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                        np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
+    large = longest > LARGE_TRIANGLE * float(np.median(longest))
+    corner_area = np.bincount(t[~large].ravel(), np.repeat(area[~large] / 3.0, 3), minlength=len(v))
+    weight = np.concatenate([corner_area, np.where(large, area, 0.0)])
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(weight), size=int(n), p=weight / weight.sum())
+    out = v[np.minimum(pick, len(v) - 1)].copy()
+    inside = np.flatnonzero(pick >= len(v))
+    if inside.size:
+        f = pick[inside] - len(v)
+        r1, r2 = rng.random(inside.size), rng.random(inside.size)
+        flip = r1 + r2 > 1.0
+        r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+        out[inside] = a[f] + r1[:, None] * (b[f] - a[f]) + r2[:, None] * (c[f] - a[f])
+    return out
+
+
 def mixed_mean_distance(a: np.ndarray, t: np.ndarray, diagonal: float, t_tree: cKDTree | None = None,
                         a_tree: cKDTree | None = None) -> float:
     """The paper's mixed mean distance between vertex sets ``a`` (result) and ``t`` (target).

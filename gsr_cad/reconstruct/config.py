@@ -156,7 +156,17 @@ class SurfaceConfig:
     """
 
     template_fit: Literal["box", "cube"] = "box"
+    max_distance: float | None = dataclasses.field(default=None, metadata={
+        "help": "pick the cage with the fewest control vertices on the accuracy/complexity front whose mean "
+                "distance (both directions, fraction of the bounding-box diagonal) is at most this; "
+                "None = the most accurate"})
+    fit_template: bool = dataclasses.field(default=True, metadata={
+        "help": "fit a user template to the target by a similarity (scale, rotation, translation) before the "
+                "search; false keeps it as given"})
     levels: int = 2
+    limit_depth: int = dataclasses.field(default=5, metadata={
+        "help": "refinement steps next to extraordinary vertices when evaluating the exact limit surface "
+                "(each quarters the area left as flat triangles; 0 = none)"})
     boundary: Literal["all", "corners"] = "all"
     fitness: Literal["surface", "mixed"] = "surface"
     op_kinds: str = "VELBIFS"
@@ -167,7 +177,7 @@ class SurfaceConfig:
     max_scale_factor: float = 1.25
     perturb_rel: float = 0.02
     max_control_faces: int = 120
-    max_target_points: int = 3000
+    max_target_points: int = 1500
     polish_rounds: int = 6
     polish_gain: float = 0.7
     final_polish_rounds: int = 20
@@ -215,6 +225,10 @@ class SurfaceConfig:
                       "max_duplicates", "generations", "stall_generations"), _whole(0), "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
                       "n_parents", "max_duplicates", "generations", "max_control_faces"), _whole(1), "be at least 1")
+        if self.max_distance is not None and not (_real(self.max_distance) and math.isfinite(self.max_distance)
+                                                  and self.max_distance > 0):
+            raise ConfigError(f"max-distance must be a positive number, not {self.max_distance!r}")
+        _check(self, ("limit_depth",), lambda x: _whole(0)(x) and x <= 8, "be a whole number from 0 to 8")
         if self.levels > 4:
             raise ConfigError(f"levels must be at most 4 (each level quadruples the faces), not {self.levels}")
         if self.max_target_points and self.max_target_points < 4:
