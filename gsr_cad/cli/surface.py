@@ -14,9 +14,9 @@ from ..errors import ConfigError
 from ..ga import ProcessPoolEvaluator
 from ..geometry.subdivision import limit_mesh
 from ..reconstruct.config import PRESETS, SurfaceConfig
-from ..reconstruct.inputs import surface_target
+from ..reconstruct.inputs import load_template, surface_target
 from ..reconstruct.meshio import save_obj
-from ..reconstruct.surface import make_template, reconstruct_surface
+from ..reconstruct.surface import reconstruct_surface
 from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
                       write_exports)
 from .progress import ga_progress
@@ -44,7 +44,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     target = surface_target(args.target)
     config = SurfaceConfig.preset(args.preset, **config_overrides(args, SurfaceConfig))
-    make_template(args.template, target, config)  # a bad template file fails here, before any output
+    if args.template != "cube":
+        load_template(args.template)  # a bad template file fails here, before any output
     if args.workers < 1:
         raise ConfigError(f"workers must be at least 1, not {args.workers}")
     formats = parse_formats(args.formats, "surface")
@@ -63,8 +64,13 @@ def run(args: argparse.Namespace) -> int:
     status = "interrupted: best so far" if result.interrupted else "done"
     print(f"{status}: {m['n_control_faces']} control faces, {m['n_control_vertices']} vertices, "
           f"ops {plots.run_length(m['ops']) or '-'}; "
-          f"mean distance {m['mean_distance']:.3g}, max {m['max_distance']:.3g} of the diagonal "
+          f"data->fit mean {m['data_to_fit_mean']:.3g} (max {m['data_to_fit_max']:.3g}), fit->data mean "
+          f"{m['fit_to_data_mean']:.3g} (max {m['fit_to_data_max']:.3g}) of the diagonal "
           f"(mixed mean {m['mixed_mean_distance']:.3g}), {m['seconds']:.1f} s -> {out}")
     for path in written:
         print(f"  wrote {path}")
+    if m.get("tolerance_met") is False:
+        print(f"error: no cage on the front met --max-distance {config.max_distance:g} (best: "
+              f"{m['symmetric_distance']:.3g})")
+        return 3
     return 0
