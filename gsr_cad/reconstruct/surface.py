@@ -146,8 +146,11 @@ class SurfaceProblem:
         self.diag = target.diagonal
         self.ranges = OpRanges(move=config.move_range, extrude=config.extrude_range, inward=config.inward_rate,
                                face_move=config.face_move_range, max_factor=config.max_scale_factor)
-        self.points = fit_points(target, config.max_target_points or DEFAULT_FIT_POINTS)
-        cloud = np.unique(self.points, axis=0)
+        # area samples repeat a small mesh's vertices: each distinct point once, weighted by its count
+        self.points, counts = np.unique(fit_points(target, config.max_target_points or DEFAULT_FIT_POINTS), axis=0,
+                                        return_counts=True)
+        self.point_weight = counts / counts.sum()
+        cloud = self.points
         self._cloud_tree = cKDTree(cloud)
         self._cloud = cloud
         self._cloud_radius = sampling_radius(cloud, self._cloud_tree, CLOUD_SAMPLING_NEIGHBOURS)
@@ -291,13 +294,12 @@ class SurfaceProblem:
         samples, area = surface.samples()
         d_back, goal, weight = self._back(samples.point)
         share = area / max(float(area.sum()), 1e-300)
-        cost = 0.5 * (fwd.distance.mean() + float(share @ d_back)) / self.diag
+        cost = 0.5 * (float(self.point_weight @ fwd.distance) + float(share @ d_back)) / self.diag
         return _Pairs(fwd, samples, goal, share * weight), float(cost)
 
     def _system(self, surface: LimitSurface, pairs: _Pairs) -> tuple[sp.csr_matrix, np.ndarray]:
         """Least-squares rows of one polish round for the correspondences ``pairs``."""
-        m = len(self.points)
-        J1, y1 = _rows(surface.rows(pairs.foot), pairs.foot.normal, self.points, np.full(m, 1.0 / m))
+        J1, y1 = _rows(surface.rows(pairs.foot), pairs.foot.normal, self.points, self.point_weight)
         J2, y2 = _rows(surface.rows(pairs.samples), pairs.samples.normal, pairs.goal, pairs.weight)
         return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
@@ -555,14 +557,16 @@ def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, ex
     to the surface, ``fit_to_data`` from the surface's area samples (``density`` more per patch side
     than the polish uses) to the target, area-weighted."""
     diag = target.diagonal
+    data, counts = np.unique(data, axis=0, return_counts=True)
+    weight = counts / counts.sum()
     d_data = surface.closest(data).distance
     top = float(d_data.max())
     if extra is not None and len(extra):
         top = max(top, float(surface.closest(extra).distance.max()))
     samples, area = surface.samples(density)
     d_fit, _ = target.closest(samples.point)
-    return {"data_to_fit_mean": float(d_data.mean() / diag), "data_to_fit_max": top / diag,
-            "data_to_fit_rms": float(np.sqrt(np.mean(d_data ** 2)) / diag),
+    return {"data_to_fit_mean": float(weight @ d_data / diag), "data_to_fit_max": top / diag,
+            "data_to_fit_rms": float(np.sqrt(weight @ d_data ** 2) / diag),
             "fit_to_data_mean": float(area @ d_fit / max(float(area.sum()), 1e-300) / diag),
             "fit_to_data_max": float(d_fit.max() / diag)}
 
