@@ -10,7 +10,7 @@ from gsr_cad.reconstruct.surface import front, reconstruct_surface
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
 
 SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-             generations=2)
+             generations=1, final_polish_rounds=5, simplify_history=False)
 
 
 def test_front_keeps_only_the_non_dominated():
