@@ -151,12 +151,27 @@ def get_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> Lim
 def bspline_basis(t: np.ndarray, order: int = 0) -> np.ndarray:
     """Uniform cubic B-spline basis ``(len(t), 4)`` on [0, 1] (``order`` 0, 1 or 2: value or derivative)."""
     t = np.asarray(t, dtype=np.float64)
+    out = np.empty(t.shape + (4,))
     s = 1.0 - t
     if order == 0:
-        return np.stack([s ** 3, 3 * t ** 3 - 6 * t ** 2 + 4, -3 * t ** 3 + 3 * t ** 2 + 3 * t + 1, t ** 3], -1) / 6.0
-    if order == 1:
-        return np.stack([-s ** 2, 3 * t ** 2 - 4 * t, -3 * t ** 2 + 2 * t + 1, t ** 2], -1) / 2.0
-    return np.stack([s, 3 * t - 2, 1 - 3 * t, t], -1)
+        t2 = t * t
+        t3 = t2 * t
+        out[..., 0] = s * s * s / 6.0
+        out[..., 1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0
+        out[..., 2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0
+        out[..., 3] = t3 / 6.0
+    elif order == 1:
+        t2 = t * t
+        out[..., 0] = -0.5 * s * s
+        out[..., 1] = 1.5 * t2 - 2.0 * t
+        out[..., 2] = -1.5 * t2 + t + 0.5
+        out[..., 3] = 0.5 * t2
+    else:
+        out[..., 0] = s
+        out[..., 1] = 3.0 * t - 2.0
+        out[..., 2] = 1.0 - 3.0 * t
+        out[..., 3] = t
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
