@@ -71,6 +71,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"  wrote {path}")
     if m.get("tolerance_met") is False:
         print(f"error: no cage on the front met --max-distance {config.max_distance:g} (best: "
-              f"{m['symmetric_distance']:.3g})")
+              f"{m['fitness']:.3g})")
         return 3
     return 0

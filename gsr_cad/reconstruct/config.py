@@ -157,8 +157,8 @@ class SurfaceConfig:
 
     template_fit: Literal["box", "cube"] = "box"
     max_distance: float | None = dataclasses.field(default=None, metadata={
-        "help": "pick the cage with the fewest control vertices on the accuracy/complexity front whose mean "
-                "distance (both directions, fraction of the bounding-box diagonal) is at most this; "
+        "help": "pick the cage with the fewest control vertices on the accuracy/complexity front whose search "
+                "distance (mean of both directions, fraction of the bounding-box diagonal) is at most this; "
                 "None = the most accurate"})
     fit_template: bool = dataclasses.field(default=True, metadata={
         "help": "fit a user template to the target by a similarity (scale, rotation, translation) before the "
