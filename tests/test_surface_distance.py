@@ -126,6 +126,20 @@ def test_triangle_set_property(seed, n_tri):
                                brute_force(points, verts, tris), atol=1e-9)
 
 
+def test_triangle_set_with_slivers_stays_small_and_exact():
+    rng = np.random.default_rng(7)
+    verts, tris = random_soup(rng, 300, 0.05)
+    # long slivers: 40 triangles hundreds of times longer than the others
+    start = rng.uniform(-1, 1, (40, 3))
+    sliver_v = np.concatenate([start, start + rng.normal(0, 5, (40, 3)), start + rng.normal(0, 1e-3, (40, 3))])
+    sliver_t = np.arange(120).reshape(3, 40).T + len(verts)
+    verts, tris = np.concatenate([verts, sliver_v]), np.concatenate([tris, sliver_t])
+    ts = TriangleSet(verts, tris)
+    assert ts._tree.n + ts._long._tree.n < 64 * len(tris)
+    points = rng.uniform(-3, 3, (200, 3))
+    np.testing.assert_allclose(ts.closest(points).distance, brute_force(points, verts, tris), atol=1e-9)
+
+
 def test_triangle_set_rejects_bad_input():
     with pytest.raises(InputError):
         TriangleSet(np.zeros((3, 3)), np.zeros((0, 3), dtype=int))

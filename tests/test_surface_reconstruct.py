@@ -11,7 +11,7 @@ import pytest
 from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError
 from gsr_cad.ga import ProcessPoolEvaluator
-from gsr_cad.geometry.isomorphism import connectivity_hash
+from gsr_cad.geometry.isomorphism import connectivity_hash, isomorphisms
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
 from gsr_cad.geometry.surface_distance import mixed_mean_distance
@@ -35,8 +35,10 @@ def sample_target(name: str, kind: str = "mesh"):
 def test_the_true_genome_on_the_unit_cube_costs_nothing(kind):
     s, target = sample_target("inset_extrude", kind)
     problem = SurfaceProblem(target, SurfaceConfig(), unit_cube())
-    assert problem.evaluate(s.truth_genome, 0).cost < 1e-12
-    assert problem.cost(s.truth_genome) < 1e-12
+    # a sparse cloud leaves a few gaps wider than its points' sampling radii
+    exact = 1e-12 if kind == "mesh" else 1e-5
+    assert problem.evaluate(s.truth_genome, 0).cost < exact
+    assert problem.cost(s.truth_genome) < exact
     # a wrong genome costs something under both measures
     assert problem.evaluate(s.truth_genome[:1], 0).cost > 1e-3
     mixed = SurfaceProblem(target, SurfaceConfig.preset("paper"), unit_cube())
@@ -181,10 +183,14 @@ def test_two_polished_loops_are_saved_as_inset_then_extrude():
             genome = (EdgeLoop(e1), EdgeLoop(e2))
             kept, mesh = problem.walk(genome)
             if len(kept) == 2 and connectivity_hash(mesh) == connectivity_hash(sample.truth_control):
-                polished = problem.polished(genome, 40, attempts=8)
-                if problem.evaluate(polished, 0).cost < 1e-7:
-                    loops = polished
-                    break
+                # the loops' vertices moved onto the true control mesh's (matched by isomorphism)
+                for vmap in isomorphisms(mesh, sample.truth_control):
+                    moved = genome + problem._moves(mesh, sample.truth_control.vertices[vmap])[0]
+                    if len(problem.walk(moved)[0]) == len(moved) and problem.evaluate(moved, 0).cost < 1e-6:
+                        loops = moved
+                        break
+            if loops:
+                break
         if loops:
             break
     assert loops is not None and "".join(op.letter for op in loops).startswith("LLV")

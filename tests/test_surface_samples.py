@@ -12,6 +12,7 @@ from trimesh.triangles import closest_point
 from scipy.spatial import cKDTree
 
 from gsr_cad import genome as genome_mod
+from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.validation import mesh_report
 from gsr_cad.reconstruct import samples as S
@@ -53,13 +54,15 @@ def test_target_is_the_limit_mesh_of_the_true_control_mesh(name):
 @pytest.mark.parametrize("name", NAMES)
 def test_cloud_lies_on_the_target_and_is_not_its_vertices(name):
     s = S.get_sample(name)
+    # on the exact limit surface of the true control mesh, within the target's chord error of its triangles
+    assert LimitSurface.of(s.truth_control).closest(s.cloud).distance.max() < 1e-9 * s.target.diagonal
     v = s.target.vertices
     tris = v[[f for q in s.target.faces for f in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))]]
     # trimesh's point-triangle projection, every point against every triangle
     pts = np.repeat(s.cloud, len(tris), axis=0)
     near = closest_point(np.tile(tris, (len(s.cloud), 1, 1)), pts)
     dist = np.linalg.norm(near - pts, axis=1).reshape(len(s.cloud), len(tris)).min(axis=1)
-    assert dist.max() < 1e-9 * s.target.diagonal
+    assert dist.max() < 2e-2 * s.target.diagonal
     assert len(s.cloud) == round(1.5 * s.target.n_vertices)
     assert cKDTree(s.target.vertices).query(s.cloud)[0].min() > 1e-4 * s.target.diagonal
 

@@ -181,16 +181,14 @@ def limit_grids(mesh: PolyMesh, level: int, boundary: Boundary = "all") -> np.nd
     return (cc.limit_matrix @ mesh.vertices)[grid]
 
 
-def _regular_patches(mesh: PolyMesh, boundary: str) -> tuple[np.ndarray, np.ndarray]:
-    """Regular level-1 quads and their Bezier poles ``(n_regular, 4, 4, 3)``."""
-    cc = get_catmull_clark(mesh, 1, boundary)
-    t = cc.topology
-    v1 = cc.refine_matrix @ mesh.vertices
-    org, nx, tw = t.he_origin, t.he_next, t.he_twin
-    good = (t.vertex_valence == 4) & ~t.vertex_is_boundary
-    quads = np.flatnonzero(good[org.reshape(-1, 4)].all(axis=1))
-    if quads.size == 0:
-        return quads, np.zeros((0, 4, 4, 3))
+def bspline_stencils(topo, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The regular quads among ``faces`` of an all-quad topology (half-edges ``4 f + k``) and their uniform
+    bicubic B-spline control grids ``(n_regular, 4, 4)`` of vertex indices (``[i, j]``, ``i`` along u from
+    corner 0 to corner 1). A quad is regular when its four corners are interior vertices of valence 4."""
+    org, nx, tw = topo.he_origin, topo.he_next, topo.he_twin
+    good = (topo.vertex_valence == 4) & ~topo.vertex_is_boundary
+    faces = np.asarray(faces, dtype=np.int64)
+    quads = faces[good[org.reshape(-1, 4)[faces]].all(axis=1)]
     ids = np.empty((quads.size, 4, 4), dtype=np.int64)
     # corner k of the quad, the two points across its side k (next to c_k, next to c_k+1), the diagonal at c_k
     inner = [(1, 1), (2, 1), (2, 2), (1, 2)]
@@ -204,7 +202,16 @@ def _regular_patches(mesh: PolyMesh, boundary: str) -> tuple[np.ndarray, np.ndar
         ids[:, xi, xj] = org[nx[nx[tt]]]
         ids[:, yi, yj] = org[nx[nx[nx[tt]]]]
         ids[:, wi, wj] = org[nx[nx[nx[s]]]]
-    g = v1[ids]
+    return quads, ids
+
+
+def _regular_patches(mesh: PolyMesh, boundary: str) -> tuple[np.ndarray, np.ndarray]:
+    """Regular level-1 quads and their Bezier poles ``(n_regular, 4, 4, 3)``."""
+    cc = get_catmull_clark(mesh, 1, boundary)
+    quads, ids = bspline_stencils(cc.topology, np.arange(len(mesh.corners)))
+    if quads.size == 0:
+        return quads, np.zeros((0, 4, 4, 3))
+    g = (cc.refine_matrix @ mesh.vertices)[ids]
     return quads, np.einsum("ai,pijc,bj->pabc", _BSPLINE_TO_BEZIER, g, _BSPLINE_TO_BEZIER)
 
 

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 
-_MAX_SPLIT = 64  # sub-triangles per edge of one triangle in the sample tree (bounds memory on slivers)
+_MAX_SPLIT = 8  # sub-triangles per edge of one triangle in the sample tree; longer ones go to a nested set
 _SPLIT = 2  # pieces per median triangle edge: finer pieces mean fewer candidate triangles per query
 _K_CANDIDATES = 32  # pieces fetched per point by the first KD-tree query (4x more per later round, if needed)
 
@@ -144,7 +144,9 @@ class TriangleSet:
     centroids go into a KD-tree; every point of a piece lies within ``radius`` of its centroid, so the
     nearest triangle to a query has a piece centroid within ``upper bound + radius`` of it. Queries fetch
     the nearest pieces, project onto their triangles, and fetch more only for points whose last fetched
-    piece still lies within that bound.
+    piece still lies within that bound. Triangles that would need more than ``_MAX_SPLIT`` pieces per edge
+    (long slivers) form a nested set with its own median, queried too: the memory and the query cost do
+    not depend on the triangles' shapes.
     """
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray):
@@ -162,13 +164,22 @@ class TriangleSet:
                           np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
         size = float(np.median(edges)) / _SPLIT
         k = (np.ones(len(t), dtype=np.int64) if size <= 0
-             else np.clip(np.ceil(edges / size), 1, _MAX_SPLIT).astype(np.int64))
+             else np.maximum(np.ceil(edges / size), 1).astype(np.int64))
+        # triangles far longer than the median (slivers of a CAD export) get a nested set of their own, with
+        # its own median, so that neither the piece count nor the covering radius depends on their shapes
+        long = k > _MAX_SPLIT
+        self._long: TriangleSet | None = None
+        if long.any():
+            self._long_ids = np.flatnonzero(long)
+            self._long = TriangleSet(v, t[long])
+        k = np.minimum(k, _MAX_SPLIT)
         centroid = (a + b + c) / 3.0
         own_radius = np.stack([np.linalg.norm(a - centroid, axis=1), np.linalg.norm(b - centroid, axis=1),
                                np.linalg.norm(c - centroid, axis=1)], axis=1).max(axis=1)
+        own_radius[long] = 0.0
         pieces, owners = [], []
-        for kk in np.unique(k):
-            sel = np.flatnonzero(k == kk)
+        for kk in np.unique(k[~long]):
+            sel = np.flatnonzero((k == kk) & ~long)
             bary = _piece_centroids(int(kk))
             pts = (bary[None, :, 0:1] * a[sel, None] + bary[None, :, 1:2] * b[sel, None]
                    + bary[None, :, 2:3] * c[sel, None])
@@ -224,7 +235,51 @@ class TriangleSet:
             k = min(4 * k, n_pieces)
             dk, ik = self._tree.query(p[rows], k=k)
             dk, ik = dk.reshape(len(rows), k), ik.reshape(len(rows), k)
+        if self._long is not None:
+            other = self._long.closest(p)
+            nearer = other.distance < dist
+            dist[nearer], tri[nearer] = other.distance[nearer], self._long_ids[other.triangle[nearer]]
+            point[nearer], bary[nearer] = other.point[nearer], other.barycentric[nearer]
         return Closest(dist, tri, point, bary)
+
+
+LARGE_TRIANGLE = 3.0
+"""A triangle whose longest edge exceeds this many times the median is sampled inside (see
+:func:`area_samples`); smaller ones are represented by their corners."""
+
+
+def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+    """``n`` points ``(n, 3)`` drawn by area from a triangle mesh (seeded), so that a plain mean over them
+    is a mean over the surface whatever the triangles' sizes.
+
+    Each triangle's area goes to its three corners (a third each), except for triangles much larger than
+    the median (``LARGE_TRIANGLE``: long slivers of a CAD export), which are sampled uniformly inside: a
+    tessellation's vertices lie on the surface it samples while its chords do not, so the same surface
+    tessellated at any density gives the same distances, and a mean over the vertices alone would miss
+    the interior of a long triangle."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    total = float(area.sum())
+    if not total > 0:
+        raise InputError("cannot sample a mesh by area: its triangles have no area")
+    longest = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                        np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
+    large = longest > LARGE_TRIANGLE * float(np.median(longest))
+    corner_area = np.bincount(t[~large].ravel(), np.repeat(area[~large] / 3.0, 3), minlength=len(v))
+    weight = np.concatenate([corner_area, np.where(large, area, 0.0)])
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(weight), size=int(n), p=weight / weight.sum())
+    out = v[np.minimum(pick, len(v) - 1)].copy()
+    inside = np.flatnonzero(pick >= len(v))
+    if inside.size:
+        f = pick[inside] - len(v)
+        r1, r2 = rng.random(inside.size), rng.random(inside.size)
+        flip = r1 + r2 > 1.0
+        r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+        out[inside] = a[f] + r1[:, None] * (b[f] - a[f]) + r2[:, None] * (c[f] - a[f])
+    return out
 
 
 def mixed_mean_distance(a: np.ndarray, t: np.ndarray, diagonal: float, t_tree: cKDTree | None = None,

@@ -256,10 +256,22 @@ class SurfaceConfig:
         "box",
         "How the default cube template is fitted to the target's bounding box: 'box' scaled per axis, 'cube' "
         "scaled uniformly (the paper's).")
+    max_distance: float | None = _field(
+        None,
+        "Pick the cage with the fewest control vertices on the accuracy/complexity front whose search distance "
+        "(mean of both directions) is at most this; none: the most accurate.", length=True)
+    fit_template: bool = _field(
+        True,
+        "Fit a user --template file to the target by a similarity (scale, rotation, translation) before the search; "
+        "off: use it as given.")
     levels: int = _field(
         2,
         "Catmull-Clark subdivision levels of the limit mesh compared with the target (1 to 4; each level "
         "quadruples the faces).")
+    limit_depth: int = _field(
+        5,
+        "Refinement steps next to extraordinary vertices when the exact limit surface is evaluated (each quarters "
+        "the area left as flat triangles); 0: none.")
     boundary: Literal["all", "corners"] = _field(
         "all",
         "Boundary rule of the subdivision: 'all' smooths boundary corners too (Blender's default), 'corners' "
@@ -290,7 +302,7 @@ class SurfaceConfig:
         "Size of the nudge a perturbed op's parameters get, as a fraction of the target's bounding-box diagonal.")
     max_control_faces: int = _field(120, "Most faces a control mesh may have (larger genomes are repaired).")
     max_target_points: int = _field(
-        3000,
+        1500,
         "Most target points scored during the search (a fixed random subset of larger targets); 0: all.")
     polish_rounds: int = _field(
         6,
@@ -357,6 +369,10 @@ class SurfaceConfig:
                       "max_duplicates", "generations", "stall_generations"), _whole(0), "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
                       "n_parents", "max_duplicates", "generations", "max_control_faces"), _whole(1), "be at least 1")
+        if self.max_distance is not None and not (_real(self.max_distance) and math.isfinite(self.max_distance)
+                                                  and self.max_distance > 0):
+            raise ConfigError(f"max-distance must be a positive number, not {self.max_distance!r}")
+        _check(self, ("limit_depth",), lambda x: _whole(0)(x) and x <= 8, "be a whole number from 0 to 8")
         if self.levels > 4:
             raise ConfigError(f"levels must be at most 4 (each level quadruples the faces), not {self.levels}")
         if self.max_target_points and self.max_target_points < 4:

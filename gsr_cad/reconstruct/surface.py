@@ -2,24 +2,23 @@
 
 The GA (paper, sections 4-5, "plus" scheme, the paper's settings) evolves genomes of the seven surface
 ops (V E L B I F S) on a template quad mesh, by default a cube placed and scaled so that its limit surface
-spans the target's bounding box; a genome starts as one or two random ops. A genome is scored on the
-level-``k`` limit mesh of its control mesh (``k = 2``).
+spans the target's box (on its principal axes, :mod:`~gsr_cad.reconstruct.placement`); a genome starts as
+one or two random ops. A user template is fitted to the target by a similarity first.
 
 Fitness. The paper's mixed mean distance (``fitness="mixed"``, the ``paper`` preset) compares vertex
-*sets*: it is 0 only when every limit vertex and every target vertex are each other's nearest
-neighbours, and every vertex without such a partner costs a full bounding-box diagonal. That suits a
-target that is itself a limit mesh of the same level, but a point cloud (or any mesh) whose density
-differs from the limit mesh's keeps a floor of unmatched points however well the surfaces agree (about
-half the diagonal on our point-cloud samples), and the value jumps as pairings switch, which gives a
-least-squares fit nothing to follow. So the default (``fitness="surface"``) is the symmetric
-point-to-surface distance of :func:`~gsr_cad.geometry.surface_distance.point_to_surface`: the mean of
-(target points -> limit triangles) and (limit vertices -> target triangles, or -> cloud samples beyond
-their sampling radius), over the diagonal. It is 0 when the surfaces coincide, whatever the sampling.
-Both measures are always reported in the metrics.
+*sets* of the level-``k`` limit mesh and the target: it suits a target that is itself a limit mesh of the
+same level, and keeps a floor of unmatched points on any other sampling. The default
+(``fitness="surface"``) is the symmetric distance between the target and the *exact* limit surface
+(:mod:`~gsr_cad.geometry.limit_surface`: B-spline patches, refined locally at extraordinary vertices):
+the mean of (target points, drawn by area, -> their foot points on the limit surface) and (area samples of
+the limit surface -> the target's points beyond their sampling radius), over the diagonal. It is 0 when the
+surfaces coincide, whatever the sampling or the target's tessellation level. The reported metrics add the
+maxima and the distance back to a mesh target's triangles (:func:`two_sided`); the mixed mean distance is
+reported too.
 
-Least-squares polish (beyond the paper). The limit surface is linear in the control vertices
-(``limit = L @ V``, ``L`` from the cached :class:`~gsr_cad.geometry.subdivision.CatmullClark`), so for
-fixed closest-point correspondences the best vertex positions solve a small linear least-squares
+Least-squares polish (beyond the paper). The limit surface is linear in the control vertices (a point
+at fixed patch parameters is a fixed combination of them, :meth:`LimitSurface.rows`), so for fixed
+closest-point correspondences the best vertex positions solve a small linear least-squares
 problem (point-to-plane, lightly damped); a few such ICP-like rounds fit any genome's vertex positions,
 never into a mesh the ops would refuse (folded or flipped faces). It is used three ways:
 
@@ -58,61 +57,69 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from ..errors import ConfigError, GsrError, InputError, OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
-from ..geometry.polymesh import PolyMesh, unit_cube
-from ..geometry.subdivision import CatmullClark, get_catmull_clark
-from ..geometry.surface_distance import TriangleSet, mixed_mean_distance, point_to_surface
+from ..geometry.limit_surface import Hits, LimitSurface, get_layout
+from ..geometry.polymesh import PolyMesh
+from ..geometry.subdivision import get_catmull_clark
+from ..geometry.surface_distance import area_samples, cloud_distance, mixed_mean_distance, sampling_radius
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
 from .features import CreaseProposals
-from .inputs import SurfaceTarget, load_template, surface_target, validate_template
+from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
+from .placement import Placement, fit_template, place_cube
 from .result import Result
 from .templates import fitted_template, genus_metrics, target_genus
 
-CUBE_LIMIT_HALF = 34.0 / 81.0
-"""Half-extent of the limit surface of a unit cube (its face centres): a cube of side ``s`` has a limit
-surface ``s * 68/81`` across, so a template meant to fill a box of extent ``e`` has side ``e * 81/68``."""
 _STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
 REWRITE_TOLERANCES = (1e-9, 1e-6, 1e-3)
 """How far (over the diagonal) the history rewrite may move control vertices, tried in turn; the
 rewrite must also keep the distance to the target within ``history_tolerance`` of the winner's."""
+DEFAULT_FIT_POINTS = 1500  # target points a fit scores when max_target_points is 0
+METRIC_POINTS = 20000  # area samples of a mesh target (or cloud points) the reported distances use
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 
 
 def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
-    """The unit cube scaled and placed so that its limit surface spans the target's bounding box.
+    """The unit cube placed on the target's oriented box (:func:`~gsr_cad.reconstruct.placement.place_cube`),
+    its limit surface spanning the box. ``fit="box"`` scales each axis to the box; ``fit="cube"`` keeps a
+    cube sized by the largest extent."""
+    return place_template("cube", target, SurfaceConfig(template_fit=fit)).mesh
 
-    ``fit="box"`` scales each axis to the box; ``fit="cube"`` keeps a cube sized by the largest extent.
-    """
-    lo, hi = target.bbox
-    extent = hi - lo
-    if fit == "cube":
-        extent = np.full(3, extent.max())
-    elif fit != "box":
-        raise ConfigError(f"template-fit must be box or cube, not {fit!r}")
-    extent = np.maximum(extent, 1e-6 * float(extent.max()))
-    cube = unit_cube()
-    return cube.with_vertices(cube.vertices * (extent / (2.0 * CUBE_LIMIT_HALF)) + (lo + hi) / 2.0)
+
+def place_template(template: str | os.PathLike[str] | PolyMesh | None, target: SurfaceTarget,
+                   config: SurfaceConfig) -> Placement:
+    """The template and how it was placed: ``"cube"`` (or None) on the target's oriented box; ``"genus"``: the
+    template with the target's genus (:func:`~gsr_cad.reconstruct.templates.fitted_template`); a PolyMesh or
+    a mesh file, checked to be a valid quad mesh, then fitted to the target by a similarity when
+    ``config.fit_template`` (:mod:`~gsr_cad.reconstruct.placement`)."""
+    if template is None or (isinstance(template, str) and template == "cube"):
+        if config.template_fit not in ("box", "cube"):
+            raise ConfigError(f"template-fit must be box or cube, not {config.template_fit!r}")
+        return place_cube(target.points, config.template_fit, fit_points(target, DEFAULT_FIT_POINTS))
+    if isinstance(template, str) and template == "genus":
+        genus = target_genus(target)[0]
+        return Placement(fitted_template(target, genus), f"genus-{genus} template on the target's box", np.eye(3),
+                         np.ones(1), np.zeros(3))
+    if isinstance(template, PolyMesh):
+        mesh = validate_template(template)
+    elif isinstance(template, (str, os.PathLike)):
+        mesh = load_template(template)
+    else:
+        raise InputError(f"template must be 'cube', a mesh file or a PolyMesh, not {type(template).__name__}")
+    if not config.fit_template:
+        return Placement(mesh, "as given", np.eye(3), np.ones(1), np.zeros(3))
+    return fit_template(mesh, fit_points(target, DEFAULT_FIT_POINTS))
 
 
 def make_template(template: str | os.PathLike[str] | PolyMesh | None, target: SurfaceTarget,
                   config: SurfaceConfig) -> PolyMesh:
-    """``"cube"`` (or None): :func:`box_template`; ``"genus"``: the template with the target's genus
-    (:func:`~gsr_cad.reconstruct.templates.fitted_template`); a PolyMesh or a mesh file: checked to be a valid
-    quad mesh."""
-    if template is None or (isinstance(template, str) and template == "cube"):
-        return box_template(target, config.template_fit)
-    if isinstance(template, str) and template == "genus":
-        return fitted_template(target, target_genus(target)[0])
-    if isinstance(template, PolyMesh):
-        return validate_template(template)
-    if isinstance(template, (str, os.PathLike)):
-        return load_template(template)
-    raise InputError(f"template must be 'cube', a mesh file or a PolyMesh, not {type(template).__name__}")
+    """The placed template of :func:`place_template`."""
+    return place_template(template, target, config).mesh
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,12 +134,11 @@ class Evaluation:
 
 
 class _Pairs(NamedTuple):
-    """Correspondences of one polish round: each target point's closest limit triangle (its limit-vertex
-    indices) and barycentric coordinates there; each limit vertex's target point and weight (see
-    :meth:`SurfaceProblem._back`)."""
+    """Correspondences of one polish round: each target point's foot point on the limit surface; the
+    surface's area samples, their closest target points and weights (see :meth:`SurfaceProblem._back`)."""
 
-    triangles: np.ndarray
-    barycentric: np.ndarray
+    foot: Hits
+    samples: Hits
     goal: np.ndarray
     weight: np.ndarray
 
@@ -147,22 +153,27 @@ class SurfaceProblem:
         self.diag = target.diagonal
         self.ranges = OpRanges(move=config.move_range, extrude=config.extrude_range, inward=config.inward_rate,
                                face_move=config.face_move_range, max_factor=config.max_scale_factor)
-        n = len(target.points)
-        if config.max_target_points and n > config.max_target_points:
-            keep = np.sort(np.random.default_rng(_TARGET_SEED).choice(n, config.max_target_points, replace=False))
-        else:
-            keep = np.arange(n)
-        self.points = target.points[keep]
+        # area samples repeat a small mesh's vertices: each distinct point once, weighted by its count
+        self.points, counts = np.unique(fit_points(target, config.max_target_points or DEFAULT_FIT_POINTS), axis=0,
+                                        return_counts=True)
+        self.point_weight = counts / counts.sum()
+        cloud = self.points
+        self._cloud_tree = cKDTree(cloud)
+        self._cloud = cloud
+        self._cloud_radius = sampling_radius(cloud, self._cloud_tree, CLOUD_SAMPLING_NEIGHBOURS)
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
         proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
                      if set("CR") & set(config.op_kinds) else None)
         self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
+        self.evaluated: dict[int, tuple[float, tuple]] = {}
+        """Per control-vertex count, the cheapest genome scored in this process (for :func:`front`)."""
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_states"] = OrderedDict()
+        state["evaluated"] = {}
         return state
 
     # --- replay with a prefix cache ----------------------------------------------------------------------
@@ -225,9 +236,13 @@ class SurfaceProblem:
     def cost(self, genome: tuple) -> float:
         """The configured distance after the evaluation polish (inf for a genome that does not replay)."""
         try:
-            return self.evaluate(genome, self.config.polish_rounds).cost
+            e = self.evaluate(genome, self.config.polish_rounds)
         except GsrError:  # an op that cannot apply, or a mesh the subdivision refuses
             return math.inf
+        n = e.control.n_vertices
+        if n not in self.evaluated or e.cost < self.evaluated[n][0]:
+            self.evaluated[n] = (e.cost, tuple(genome))
+        return e.cost
 
     def local_search(self, genome: tuple) -> tuple:
         """The polish written back as ``translate_vertex`` ops (the GA's memetic hook)."""
@@ -247,112 +262,112 @@ class SurfaceProblem:
         return self.walk(genome)[1].topology_key
 
     # --- scoring -------------------------------------------------------------------------------------------
-    def _subdivision(self, mesh: PolyMesh) -> tuple[CatmullClark, np.ndarray]:
-        cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
-        return cc, cc.triangles
+    def surface(self, mesh: PolyMesh) -> LimitSurface:
+        """The exact limit surface of ``mesh`` (layout cached per connectivity)."""
+        return LimitSurface(get_layout(mesh, self.config.boundary, self.config.limit_depth), mesh.vertices)
 
-    def _distance(self, limit_vertices: np.ndarray, triangles: np.ndarray) -> float:
-        """Cost of a limit mesh under the configured fitness, over the diagonal (both exact)."""
-        target = self.target
-        if self.config.fitness == "mixed":
-            return mixed_mean_distance(limit_vertices, target.points, self.diag, target.kdtree) / self.diag
-        d = point_to_surface(limit_vertices, triangles, self.points, target_surface=target.triangle_set,
-                             target_tree=target.kdtree,
-                             target_radius=target.sampling_radius if target.faces is None else None)
-        return d.symmetric / self.diag
+    def _mixed(self, mesh: PolyMesh) -> float:
+        """The paper's mixed mean distance of ``mesh``'s level-``k`` limit vertices, over the diagonal."""
+        cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
+        limit = cc.limit_matrix @ mesh.vertices
+        return mixed_mean_distance(limit, self.target.points, self.diag, self.target.kdtree) / self.diag
 
     def evaluate(self, genome: tuple, rounds: int) -> Evaluation:
         """Score ``genome`` after ``rounds`` least-squares rounds on its control vertices."""
         mesh = self.control_mesh(genome)
-        cc, tris = self._subdivision(mesh)
-        vertices, cost = self.fit(mesh, cc, tris, rounds) if rounds > 0 else (mesh.vertices, None)
+        vertices, cost = self.fit(mesh, rounds)
         control = mesh if rounds <= 0 else mesh.with_vertices(vertices)
-        limit = cc.limit(vertices)
-        if cost is None or self.config.fitness == "mixed":
-            cost = self._distance(limit.vertices, tris)
-        return Evaluation(control, limit, tris, float(cost))
+        cc = get_catmull_clark(mesh, self.config.levels, self.config.boundary)
+        if self.config.fitness == "mixed":
+            cost = self._mixed(control)
+        return Evaluation(control, cc.limit(vertices), cc.triangles, float(cost))
 
     def _back(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Limit vertices -> target: ``(distance, corresponding point, weight)`` per vertex.
+        """Surface samples -> target, as the fit sees it: ``(distance, corresponding point, weight)``.
 
-        A mesh target gives the closest point on its triangles (weight 1). A cloud gives the nearest
-        sample; a vertex within that sample's sampling radius costs nothing and is not pulled (weight 0),
-        one beyond it pays the excess and is pulled towards it.
+        The target is the cloud of the fit's points (a mesh's area samples, which lie on its vertices and
+        inside its large triangles), each standing for the surface within its sampling radius: a surface
+        point within that radius of its nearest point costs nothing and is not pulled (weight 0), one
+        beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
+        surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
         """
-        d, point = self.target.closest(X)
-        return d, point, np.ones(len(X)) if self.target.faces is not None else (d > 0).astype(np.float64)
+        d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
+        near = self._cloud[idx]
+        gap = np.linalg.norm(near - X, axis=1)
+        # pulled by the excess only: to the sphere of the nearest point's radius, not to the point
+        share = np.divide(d, gap, out=np.zeros_like(d), where=gap > 0)
+        return d, X + share[:, None] * (near - X), (d > 0).astype(np.float64)
 
-    def _pairs(self, X: np.ndarray, tris: np.ndarray) -> tuple[_Pairs, float]:
-        """The closest-point correspondences of one polish round at limit vertices ``X``, and the symmetric
-        cost of ``X``.
+    def _pairs(self, surface: LimitSurface, hint: Hits | None = None) -> tuple[_Pairs, float]:
+        """The correspondences of one polish round on ``surface`` and its symmetric cost: the target points'
+        foot points on the limit surface, and the surface's area samples' closest points on the target
+        (as in :meth:`_back`, weighted by area). ``hint``: the previous round's foot points."""
+        fwd = surface.closest(self.points, hint)
+        samples, area = surface.samples()
+        d_back, goal, weight = self._back(samples.point)
+        share = area / max(float(area.sum()), 1e-300)
+        cost = 0.5 * (float(self.point_weight @ fwd.distance) + float(share @ d_back)) / self.diag
+        return _Pairs(fwd, samples, goal, share * weight), float(cost)
 
-        Target points pair with their closest points on the limit triangles (barycentric combinations of
-        limit vertices); limit vertices pair with the target as in :meth:`_back`.
-        """
-        fwd = TriangleSet(X, tris).closest(self.points)
-        d_back, goal, weight = self._back(X)
-        cost = 0.5 * (fwd.distance.mean() + d_back.mean()) / self.diag
-        return _Pairs(tris[fwd.triangle], fwd.barycentric, goal, weight), float(cost)
-
-    def _system(self, X: np.ndarray, tris: np.ndarray, L: sp.csr_matrix, pairs: _Pairs
-                ) -> tuple[sp.csr_matrix, np.ndarray]:
-        """Least-squares rows of one polish round for the correspondences ``pairs`` found at ``X``."""
-        P = self.points
-        m, n_lim = len(P), len(X)
-        tri = pairs.triangles
-        A1 = sp.csr_matrix((pairs.barycentric.ravel(), (np.repeat(np.arange(m), 3), tri.ravel())),
-                           shape=(m, n_lim)) @ L
-        n1 = _unit_rows(np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]))
-        J1, y1 = _rows(A1, n1, P, np.full(m, 1.0 / m))
-        J2, y2 = _rows(L, _unit_rows(_vertex_normals(X, tris)), pairs.goal, pairs.weight / n_lim)
+    def _system(self, surface: LimitSurface, pairs: _Pairs) -> tuple[sp.csr_matrix, np.ndarray]:
+        """Least-squares rows of one polish round for the correspondences ``pairs``."""
+        J1, y1 = _rows(surface.rows(pairs.foot), pairs.foot.normal, self.points, self.point_weight)
+        J2, y2 = _rows(surface.rows(pairs.samples), pairs.samples.normal, pairs.goal, pairs.weight)
         return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
-    def fit(self, mesh: PolyMesh, cc: CatmullClark, tris: np.ndarray, rounds: int,
-            min_gain: float | None = None) -> tuple[np.ndarray, float]:
+    def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
-        and their symmetric point-to-surface cost.
+        and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
-        Each round fixes the correspondences (see :meth:`_pairs`) and solves for the control vertices
-        ``V`` (``limit = L V``) minimising, with both directions weighted as in the symmetric distance,
-        the point-to-plane residuals (along the limit surface's normals, which lets the surface slide along
-        itself and converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals,
-        plus ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A
-        step the mesh ops would refuse (a folded or flipped face) is halved, twice, then the rounds stop.
-        Rounds also stop once one gains less than the factor ``min_gain`` (default
-        ``config.polish_gain``): a structure that cannot fit the target stops after a few rounds, one that
-        can keeps converging.
+        Each round fixes the correspondences (see :meth:`_pairs`: foot points on the exact limit surface,
+        which is linear in the control vertices ``V`` at fixed patch parameters) and solves for ``V``
+        minimising, with both directions weighted as in the symmetric distance, the point-to-plane
+        residuals (along the limit surface's normals, which lets the surface slide along itself and
+        converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals, plus
+        ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A step the
+        mesh ops would refuse (a folded or flipped face) is halved, twice, then damped tenfold more (up to
+        three times), then the rounds stop. Rounds also
+        stop once one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure
+        that cannot fit the target stops after a few rounds, one that can keeps converging.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
-        L = cc.limit_matrix
-        n = L.shape[1]
+        layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
         V = np.array(mesh.vertices, dtype=np.float64)
+        n = len(V)
         normals0 = mesh.face_newell
         best_v, best_cost, last = V, math.inf, math.inf
-        for r in range(rounds + 1):
-            X = L @ V
-            pairs, cost = self._pairs(X, tris)
+        hint = None
+        for r in range(max(rounds, 0) + 1):
+            surface = LimitSurface(layout, V)
+            pairs, cost = self._pairs(surface, hint)
+            hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
             if r == rounds or cost == 0.0 or cost >= min_gain * last:
                 break
             last = cost
-            J, y = self._system(X, tris, L, pairs)
+            J, y = self._system(surface, pairs)
             H = (J.T @ J).toarray()
             g = J.T @ y
             lam = self.config.polish_damping * max(float(np.trace(H)) / len(H), 1e-300)
-            H[np.diag_indices_from(H)] += lam
-            g += lam * V.ravel()
-            try:
-                step = scipy.linalg.solve(H, g, assume_a="pos", check_finite=False).reshape(n, 3) - V
-            except (np.linalg.LinAlgError, ValueError):
-                break
-            # The ops must be able to build the result: back off (1/2, 1/4) from a mesh they would refuse.
-            for fraction in (1.0, 0.5, 0.25):
-                trial = V + fraction * step
-                if np.all(np.isfinite(trial)) and _sound(mesh.with_vertices(trial), normals0):
-                    V = trial
+            moved = False
+            # Levenberg-Marquardt: a step the ops would refuse (a folded or flipped face) is halved, twice,
+            # then the damping rises tenfold, up to three times
+            for _ in range(4):
+                try:
+                    step = scipy.linalg.solve(H + lam * np.eye(len(H)), g + lam * V.ravel(), assume_a="pos",
+                                              check_finite=False).reshape(n, 3) - V
+                except (np.linalg.LinAlgError, ValueError):
                     break
-            else:
+                for fraction in (1.0, 0.5, 0.25):
+                    trial = V + fraction * step
+                    if np.all(np.isfinite(trial)) and _sound(mesh.with_vertices(trial), normals0):
+                        V, moved = trial, True
+                        break
+                if moved:
+                    break
+                lam *= 10.0
+            if not moved:
                 break
         return best_v, best_cost
 
@@ -413,8 +428,7 @@ class SurfaceProblem:
         best_cost = self.evaluate(best, 0).cost
         for _ in range(attempts):
             mesh = self.control_mesh(best)
-            cc, tris = self._subdivision(mesh)
-            new_v = self.fit(mesh, cc, tris, rounds, min_gain)[0]
+            new_v = self.fit(mesh, rounds, min_gain)[0]
             tries = []
             for ops, base in self._bases(best, mesh, compact):
                 moves, _, refused = self._moves(base, new_v)
@@ -455,7 +469,7 @@ class SurfaceProblem:
         return out
 
 
-POINT_WEIGHT = 0.01
+POINT_WEIGHT = 1e-4
 """Weight of the point-to-point residuals next to the point-to-plane ones in the polish."""
 
 
@@ -488,16 +502,6 @@ def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
 def _unit_rows(a: np.ndarray) -> np.ndarray:
     length = np.linalg.norm(a, axis=1, keepdims=True)
     return np.divide(a, length, out=np.zeros_like(a), where=length > 0)
-
-
-def _vertex_normals(X: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals of a triangle mesh (not normalized)."""
-    face = np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]])
-    out = np.zeros_like(X)
-    for k in range(3):
-        out[:, k] = (np.bincount(tris[:, 0], face[:, k], len(X)) + np.bincount(tris[:, 1], face[:, k], len(X))
-                     + np.bincount(tris[:, 2], face[:, k], len(X)))
-    return out
 
 
 def _rows(A: sp.csr_matrix, normals: np.ndarray, goal: np.ndarray, weight: np.ndarray
@@ -546,29 +550,80 @@ def _ga_config(config: SurfaceConfig) -> GAConfig:
     )
 
 
-def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
-    """Both distance measures between the control mesh's level-``k`` limit mesh and the whole target,
-    normalized by the target's bounding-box diagonal."""
-    cc = get_catmull_clark(control, config.levels, config.boundary)
-    limit = cc.limit(control.vertices)
-    tris = cc.triangles
+def fit_points(target: SurfaceTarget, count: int) -> np.ndarray:
+    """The target points a fit scores: ``count`` area samples of a mesh (its vertices would weight dense
+    regions more), a cloud's points (a fixed random ``count`` of larger ones). Seeded: the cost must not
+    depend on the run's seed."""
+    if target.faces is not None:
+        return area_samples(target.points, target.faces, count, _TARGET_SEED)
+    n = len(target.points)
+    if n <= count:
+        return target.points
+    return target.points[np.sort(np.random.default_rng(_TARGET_SEED).choice(n, count, replace=False))]
+
+
+def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, extra: np.ndarray | None = None,
+              density: int = 2) -> dict[str, float]:
+    """Both directions between an exact limit surface and a target, over the target's diagonal:
+    ``data_to_fit`` from the points ``data`` (mean; the max also over ``extra``, e.g. a mesh's vertices)
+    to the surface, ``fit_to_data`` from the surface's area samples (``density`` more per patch side
+    than the polish uses) to the target, area-weighted."""
     diag = target.diagonal
+    data, counts = np.unique(data, axis=0, return_counts=True)
+    weight = counts / counts.sum()
+    d_data = surface.closest(data).distance
+    top = float(d_data.max())
+    if extra is not None and len(extra):
+        top = max(top, float(surface.closest(extra).distance.max()))
+    samples, area = surface.samples(density)
+    d_fit, _ = target.closest(samples.point)
+    return {"data_to_fit_mean": float(weight @ d_data / diag), "data_to_fit_max": top / diag,
+            "data_to_fit_rms": float(np.sqrt(weight @ d_data ** 2) / diag),
+            "fit_to_data_mean": float(area @ d_fit / max(float(area.sum()), 1e-300) / diag),
+            "fit_to_data_max": float(d_fit.max() / diag)}
+
+
+def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, tuple]]:
+    """The accuracy/complexity front: ``(control vertices, distance, genome)`` of the evaluated genomes that
+    no other beats in both (fewer or as many vertices and a lower distance), by vertex count."""
+    out: list[tuple[int, float, tuple]] = []
+    for n in sorted(evaluated):
+        cost, genome = evaluated[n]
+        if math.isfinite(cost) and (not out or cost < out[-1][1]):
+            out.append((n, cost, genome))
+    return out
+
+
+def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
+    """Distances between the control mesh's exact limit surface and the whole target (both directions,
+    :func:`two_sided`, on ``METRIC_POINTS`` area samples of a mesh or every point of a cloud up to that
+    many), and the paper's mixed mean distance of its level-``k`` limit vertices; all over the target's
+    bounding-box diagonal."""
+    layout = get_layout(control, config.boundary, config.limit_depth)
+    surface = LimitSurface(layout, control.vertices)
     cloud = target.faces is None
-    d = point_to_surface(limit.vertices, tris, target.points, target_surface=target.triangle_set,
-                         target_tree=target.kdtree, target_radius=target.sampling_radius if cloud else None)
-    mixed = mixed_mean_distance(limit.vertices, target.points, diag, target.kdtree)
+    data = fit_points(target, METRIC_POINTS)
+    extra = None if cloud else target.points[:METRIC_POINTS]
+    d = two_sided(surface, target, data, extra)
+    cc = get_catmull_clark(control, config.levels, config.boundary)
+    diag = target.diagonal
+    mixed = mixed_mean_distance(cc.limit_matrix @ control.vertices, target.points, diag, target.kdtree)
     return {
-        "mean_distance": float(d.to_surface.mean() / diag),
-        "max_distance": float(d.to_surface.max() / diag),
-        "rms_distance": float(np.sqrt(np.mean(d.to_surface ** 2)) / diag),
-        "mean_distance_to_target": float(d.to_target.mean() / diag),
-        "max_distance_to_target": float(d.to_target.max() / diag),
-        "symmetric_distance": float(d.symmetric / diag),
+        **d,
+        "mean_distance": d["data_to_fit_mean"],
+        "max_distance": d["data_to_fit_max"],
+        "rms_distance": d["data_to_fit_rms"],
+        "mean_distance_to_target": d["fit_to_data_mean"],
+        "max_distance_to_target": d["fit_to_data_max"],
+        "symmetric_distance": 0.5 * (d["data_to_fit_mean"] + d["fit_to_data_mean"]),
         "mixed_mean_distance": float(mixed / diag),
-        "paper_fitness": float(1.0 / mixed) if mixed > 0 else math.inf,
+        "paper_fitness": float(diag / mixed) if mixed > 0 else math.inf,
+        "distance_surface": f"exact limit surface ({layout.n_patches} B-spline patches, refinement depth "
+                            f"{config.limit_depth} at extraordinary vertices)",
+        "n_data_samples": int(len(data)),
         "n_control_vertices": int(control.n_vertices),
         "n_control_faces": int(control.n_faces),
-        "n_limit_vertices": int(limit.n_vertices),
+        "n_limit_vertices": int(cc.n_vertices),
     }
 
 
@@ -627,7 +682,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     tgt = surface_target(target)
     config = (SurfaceConfig.preset(preset, **overrides) if config is None
               else dataclasses.replace(config, **overrides).validated())
-    tmpl = make_template(template, tgt, config)
+    placement = place_template(template, tgt, config)
+    tmpl = placement.mesh
     problem = SurfaceProblem(tgt, config, tmpl)
     tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
     engine = start_or_resume(problem, _ga_config(config), seed, evaluator, checkpoint, tag)
@@ -641,6 +697,11 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
 
     run: RunResult = engine.run(on_generation=on_generation, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
+    pareto = front(problem.evaluated)
+    if config.max_distance is not None:
+        meets = [entry for entry in pareto if entry[1] <= config.max_distance]
+        if meets and meets[0][2] != best:
+            best = meets[0][2]  # the simplest cage that meets the tolerance
     searched = time.perf_counter()
 
     def hurry() -> bool:
@@ -675,7 +736,13 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "n_ops": len(final),
         "ops": _letters(final),
         **genus_metrics(control, *target_genus(tgt)),
+        "template_placement": placement.to_json(),
+        "front": [{"vertices": n, "ops": _letters(g), "distance": c} for n, c, g in pareto],
     })
+    if config.max_distance is not None:
+        # the front's measure: the search's symmetric distance (the reported fit_to_data also holds a mesh
+        # target's own chord error)
+        metrics["tolerance_met"] = bool(metrics["fitness"] <= config.max_distance)
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
     cfg = config.to_json()

@@ -2,8 +2,8 @@
 
 Each sample's target is the level-2 limit mesh (:data:`LEVELS`, the fitness level by default) of its
 true control mesh, so a reconstruction that finds the true structure can match it exactly. Its
-point-cloud version (:attr:`SurfaceSample.cloud`) is drawn by area on the target's triangles (away from
-their corners), half as many again as the mesh has vertices, so its density is unlike the limit mesh's
+point-cloud version (:attr:`SurfaceSample.cloud`) is drawn by area on the exact limit surface, half as
+many again as the mesh has vertices, so its density is unlike the limit mesh's
 (what the paper's mixed mean distance handles badly). Samples register into
 :mod:`gsr_cad.reconstruct.samples` under kind "surface" and are written as OBJ by ``gsr sample``.
 
@@ -27,9 +27,9 @@ import numpy as np
 from .. import genome as genome_mod
 from ..atomic import write_text
 from ..errors import InputError, OpError
+from ..geometry.limit_surface import LimitSurface
 from ..geometry.polymesh import PolyMesh, unit_cube
 from ..geometry.subdivision import limit_mesh
-from ..geometry.surface_distance import triangulate
 from ..ops.mesh import Extrude, Inset, TranslateFace, random_op
 from .meshio import save_mesh
 from .samples import SAMPLES, register
@@ -48,18 +48,6 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     out = np.array(a, dtype=np.float64)
     out.setflags(write=False)
     return out
-
-
-def area_samples(vertices: np.ndarray, triangles: np.ndarray, count: int, seed: int) -> np.ndarray:
-    """``count`` points spread by area over a triangle set (seeded), kept off the triangles' corners."""
-    v = np.asarray(vertices, dtype=np.float64)
-    a, b, c = v[triangles[:, 0]], v[triangles[:, 1]], v[triangles[:, 2]]
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    rng = np.random.default_rng(seed)
-    tri = rng.choice(len(triangles), size=count, p=area / area.sum())
-    r1, r2 = rng.uniform(0.02, 0.98, (2, count))
-    s = np.sqrt(r1)
-    return (a[tri] * (1.0 - s)[:, None] + b[tri] * (s * (1.0 - r2))[:, None] + c[tri] * (s * r2)[:, None])
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -123,7 +111,7 @@ class SurfaceSample:
         d = Path(directory)
         files = {f"{self.name}.obj": f"target: level-{LEVELS} limit mesh ({self.target.n_vertices} vertices, "
                                      f"{self.target.n_faces} quads)",
-                 f"{self.name}.cloud.xyz": f"point-cloud version: {len(self.cloud)} points on the target",
+                 f"{self.name}.cloud.xyz": f"point-cloud version: {len(self.cloud)} points on its limit surface",
                  f"{self.name}.truth.obj": f"true control mesh ({self.truth_control.n_vertices} vertices, "
                                            f"{self.truth_control.n_faces} faces)"}
         self.write(d / f"{self.name}.obj")
@@ -137,8 +125,7 @@ class SurfaceSample:
 
 def _sample(name: str, description: str, control: PolyMesh, genome: tuple | None, seed: int) -> SurfaceSample:
     target = limit_mesh(control, LEVELS)
-    cloud = area_samples(target.vertices, triangulate(target.corners, target.offsets),
-                         int(round(CLOUD_FACTOR * target.n_vertices)), seed)
+    cloud = LimitSurface.of(control).random_points(int(round(CLOUD_FACTOR * target.n_vertices)), seed)
     return SurfaceSample(name, description, control, genome, target, cloud, seed)
 
 
@@ -212,4 +199,4 @@ def _unreachable(name, description):
 SURFACE_SAMPLES = {n: info.build for n, info in SAMPLES.items() if info.kind == "surface"}
 """Name -> builder of every registered surface sample."""
 
-__all__ = ["LEVELS", "SURFACE_SAMPLES", "SurfaceSample", "area_samples", "random_ops_sample", "square_ring"]
+__all__ = ["LEVELS", "SURFACE_SAMPLES", "SurfaceSample", "random_ops_sample", "square_ring"]

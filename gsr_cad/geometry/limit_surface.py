@@ -1,0 +1,486 @@
+"""The Catmull-Clark limit surface itself (not a tessellation of it): patches, foot points, area samples.
+
+After one Catmull-Clark step every face is a quad. A quad whose four corners are interior vertices of
+valence 4 is exactly a uniform bicubic B-spline patch of the 16 vertices of its 1-ring
+(:func:`~gsr_cad.geometry.patches.bspline_stencils`). The other quads (next to an extraordinary or a
+boundary vertex) are refined again, locally: the faces within two rings of them are cut out and
+subdivided one more step, three of the four children of a quad at an extraordinary vertex become
+regular patches, and the fourth stays pending. After ``depth`` such steps the pending quads (an area
+``4**-depth`` of the first ones) are kept as flat pairs of triangles on their limit corners. Two rings of
+margin keep every vertex used exactly as the global refinement computes it (the artificial boundary of a
+cut-out only perturbs vertices within a quarter of a ring of it).
+
+Everything is a fixed sparse map of the control vertices (:class:`LimitLayout`, built once per
+connectivity), so a point at fixed ``(patch, u, v)`` is a linear combination of control vertices and a
+least-squares fit stays linear. :class:`LimitSurface` evaluates one placement: foot points of query
+points (nearest samples, then clamped Newton on a few candidate patches), area-weighted samples
+(Gauss-Legendre per patch) and the sparse rows of any evaluated point. numpy/scipy only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+from collections import OrderedDict
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from .patches import bspline_stencils
+from .polymesh import PolyMesh
+from .subdivision import CatmullClark, get_catmull_clark
+from .surface_distance import TriangleSet
+
+DEPTH = 5
+"""Local refinement steps at extraordinary vertices: the pending quads left are ``4**-DEPTH`` of the
+area next to them, so their chord error is about ``1e-3 / 4**(DEPTH - 1)`` of a cube's diagonal."""
+_CANDIDATE_SAMPLES = 8  # nearest samples fetched per query point and patch depth
+_CANDIDATE_PATCHES = 2  # distinct patches per query point and patch depth
+_NEWTON = 12  # clamped Newton iterations per foot point (converged pairs stop earlier)
+_SEARCH_GRID = {0: 8, 1: 4, 2: 2}  # samples per patch side for the candidate search, by depth (else 1)
+_QUADRATURE = {0: 4, 1: 3, 2: 2}  # Gauss-Legendre points per patch side, by local depth (else 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class LimitLayout:
+    """The limit surface of one connectivity as maps of the control vertices.
+
+    ``poles`` ``(16 P, n)``: row ``16 p + 4 i + j`` is control point ``(i, j)`` (``i`` along u) of patch
+    ``p``; ``depth[p]`` its local refinement depth (0: a quad of the first refinement); ``corners``
+    ``(R, n)`` the limit corners of the pending quads, ``triangles`` ``(2 R', 3)`` rows of ``corners``.
+    """
+
+    poles: sp.csr_matrix
+    depth: np.ndarray
+    corners: sp.csr_matrix
+    triangles: np.ndarray
+    n_control: int
+
+    @property
+    def n_patches(self) -> int:
+        return len(self.depth)
+
+
+def _ring_faces(topo, faces: np.ndarray, rings: int) -> np.ndarray:
+    """Faces within ``rings`` vertex-rings of ``faces`` (a boolean mask over the topology's faces)."""
+    n_f = topo.n_faces
+    inc = sp.csr_matrix((np.ones(len(topo.he_origin)), (topo.he_face, topo.he_origin)),
+                        shape=(n_f, topo.n_vertices))
+    mask = np.zeros(n_f, dtype=bool)
+    mask[faces] = True
+    for _ in range(rings):
+        verts = np.asarray(inc[mask].sum(axis=0)).ravel() > 0
+        mask = np.asarray(inc[:, verts].sum(axis=1)).ravel() > 0
+    return mask
+
+
+def build_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> LimitLayout:
+    """The :class:`LimitLayout` of ``mesh``'s connectivity (module docstring)."""
+    cc = get_catmull_clark(mesh, 1, boundary)
+    topo = cc.topology
+    P = sp.csr_matrix(cc.refine_matrix)
+    faces = cc.corners.reshape(-1, 4)
+    pending = np.arange(len(faces))
+    blocks, depths = [], []
+    for step in range(depth + 1):
+        regular, ids = bspline_stencils(topo, pending)
+        if regular.size:
+            blocks.append(P[ids.reshape(-1)])
+            depths.append(np.full(regular.size, step))
+        pending = np.setdiff1d(pending, regular)
+        if pending.size == 0 or step == depth:
+            break
+        keep = np.flatnonzero(_ring_faces(topo, pending, 2))
+        sub_faces = faces[keep]
+        used, local = np.unique(sub_faces, return_inverse=True)
+        sub = PolyMesh(np.zeros((used.size, 3)), local.ravel(), np.arange(0, local.size + 1, 4))
+        step_cc = CatmullClark(sub, 1, boundary)
+        P = sp.csr_matrix(step_cc.refine_matrix @ P[used])
+        topo = step_cc.topology
+        faces = step_cc.corners.reshape(-1, 4)
+        where = np.searchsorted(keep, pending)  # pending faces' positions in the cut-out
+        pending = (4 * where[:, None] + np.arange(4)).ravel()  # their children
+    if pending.size:
+        lim = CatmullClark(PolyMesh(np.zeros((P.shape[0], 3)), faces.ravel(), np.arange(0, faces.size + 1, 4)),
+                           0, boundary).limit_matrix
+        quads = faces[pending]
+        used, local = np.unique(quads, return_inverse=True)
+        local = local.reshape(-1, 4)
+        corners = sp.csr_matrix(lim[used] @ P)
+        tris = np.concatenate([local[:, [0, 1, 2]], local[:, [0, 2, 3]]])
+    else:
+        corners = sp.csr_matrix((0, mesh.n_vertices))
+        tris = np.zeros((0, 3), dtype=np.int64)
+    poles = sp.vstack(blocks, format="csr") if blocks else sp.csr_matrix((0, mesh.n_vertices))
+    dep = np.concatenate(depths) if depths else np.zeros(0, dtype=np.int64)
+    return LimitLayout(poles, dep, corners, tris, mesh.n_vertices)
+
+
+class _LayoutCache:
+    """LRU of layouts by ``(topology key, boundary, depth)``."""
+
+    def __init__(self, size: int = 256):
+        self.size = size
+        self._items: OrderedDict[tuple, LimitLayout] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, mesh: PolyMesh, boundary: str, depth: int) -> LimitLayout:
+        key = (mesh.topology_key, boundary, depth)
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        layout = build_layout(mesh, boundary, depth)
+        with self._lock:
+            self._items[key] = layout
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return layout
+
+
+_LAYOUTS = _LayoutCache()
+
+
+def get_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> LimitLayout:
+    """The cached :class:`LimitLayout` of ``mesh``'s connectivity."""
+    return _LAYOUTS.get(mesh, boundary, depth)
+
+
+def bspline_basis(t: np.ndarray, order: int = 0) -> np.ndarray:
+    """Uniform cubic B-spline basis ``(len(t), 4)`` on [0, 1] (``order`` 0, 1 or 2: value or derivative)."""
+    t = np.asarray(t, dtype=np.float64)
+    out = np.empty(t.shape + (4,))
+    s = 1.0 - t
+    if order == 0:
+        t2 = t * t
+        t3 = t2 * t
+        out[..., 0] = s * s * s / 6.0
+        out[..., 1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0
+        out[..., 2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0
+        out[..., 3] = t3 / 6.0
+    elif order == 1:
+        t2 = t * t
+        out[..., 0] = -0.5 * s * s
+        out[..., 1] = 1.5 * t2 - 2.0 * t
+        out[..., 2] = -1.5 * t2 + t + 0.5
+        out[..., 3] = 0.5 * t2
+    else:
+        out[..., 0] = s
+        out[..., 1] = 3.0 * t - 2.0
+        out[..., 2] = 1.0 - 3.0 * t
+        out[..., 3] = t
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Hits:
+    """Points on a limit surface: on patch ``patch`` at ``(u, v)``, or (``patch == -1``) on pending
+    triangle ``triangle`` at ``barycentric``; ``point``, unit ``normal`` and ``distance`` to the query."""
+
+    patch: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    triangle: np.ndarray
+    barycentric: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    distance: np.ndarray
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(a, axis=-1, keepdims=True)
+    return np.divide(a, n, out=np.zeros_like(a), where=n > 0)
+
+
+def _combine(a: np.ndarray, b: np.ndarray, poles: np.ndarray) -> np.ndarray:
+    """``sum_ij a[q, i] b[q, j] poles[q, 4 i + j]``."""
+    return np.einsum("qk,qkc->qc", (a[:, :, None] * b[:, None, :]).reshape(-1, 16), poles)
+
+
+def _evaluate(poles: np.ndarray, u: np.ndarray, v: np.ndarray, derivatives: bool):
+    """Points of patches with poles ``(q, 16, 3)`` at ``(u[i], v[i])`` (and the first derivatives)."""
+    bu, bv = bspline_basis(u), bspline_basis(v)
+    if not derivatives:
+        return _combine(bu, bv, poles)
+    return _combine(bu, bv, poles), _combine(bspline_basis(u, 1), bv, poles), _combine(bu, bspline_basis(v, 1), poles)
+
+
+def _grid_params(m: int) -> tuple[np.ndarray, np.ndarray]:
+    g = np.linspace(0.0, 1.0, m)
+    return np.repeat(g, m), np.tile(g, m)
+
+
+class LimitSurface:
+    """The limit surface of control vertices ``vertices`` on ``layout``'s connectivity."""
+
+    def __init__(self, layout: LimitLayout, vertices: np.ndarray):
+        v = np.asarray(vertices, dtype=np.float64)
+        if v.shape != (layout.n_control, 3):
+            raise InputError(f"expected ({layout.n_control}, 3) control vertices, got shape {v.shape}")
+        self.layout = layout
+        self.control = v
+        self.poles = (layout.poles @ v).reshape(-1, 4, 4, 3)
+        self.corner_points = layout.corners @ v
+        self._groups: list | None = None
+
+    @classmethod
+    def of(cls, mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> LimitSurface:
+        return cls(get_layout(mesh, boundary, depth), mesh.vertices)
+
+    # --- evaluation --------------------------------------------------------------------------------------
+    def evaluate(self, patch: np.ndarray, u: np.ndarray, v: np.ndarray, derivatives: bool = False):
+        """Points ``(q, 3)`` at ``(patch[i], u[i], v[i])``; with ``derivatives`` also ``S_u`` and ``S_v``."""
+        return _evaluate(self.poles[patch].reshape(-1, 16, 3), u, v, derivatives)
+
+    def _search(self) -> list[tuple[cKDTree, np.ndarray, np.ndarray, float]]:
+        """Per patch depth: a KD-tree of grid samples of its patches (spaced alike at every depth), their
+        patch and parameters ``(s, 2)``, and a covering radius (every point of those patches lies within
+        it of a sample of its own patch)."""
+        if self._groups is None:
+            dep = self.layout.depth
+            self._groups = []
+            for d in np.unique(dep):
+                sel = np.flatnonzero(dep == d)
+                m = _SEARCH_GRID.get(int(d), 1)
+                g = (np.arange(m) + 0.5) / m  # cell centres: no sample on a border shared by several patches
+                u, v = np.repeat(g, m), np.tile(g, m)
+                owner = np.repeat(sel, u.size)
+                params = np.tile(np.stack([u, v], 1), (sel.size, 1))
+                pts = self.evaluate(owner, params[:, 0], params[:, 1])
+                # a patch lies in its poles' hull: each sample covers a cell of 1/m of the hull's width
+                poles = self.poles[sel].reshape(sel.size, 16, 3)
+                width = np.linalg.norm(poles.max(axis=1) - poles.min(axis=1), axis=1)
+                radius = float(width.max()) / m
+                self._groups.append((cKDTree(pts), owner, params, radius))
+            if len(self.layout.triangles):
+                self._pending = TriangleSet(self.corner_points, self.layout.triangles)
+                corners = self.corner_points[self.layout.triangles]
+                centroid = corners.mean(axis=1)
+                reach = float(np.linalg.norm(corners - centroid[:, None], axis=2).max()) * (1 + 1e-9)
+                self._pending_index = (cKDTree(centroid), reach)
+        return self._groups
+
+    def foot_points(self, patch: np.ndarray, u: np.ndarray, v: np.ndarray, x: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Clamped Newton foot points of ``x[i]`` on patch ``patch[i]`` from ``(u[i], v[i])`` (pairs stop
+        once their step is below 1e-12 in parameter)."""
+        u, v = u.astype(np.float64).copy(), v.astype(np.float64).copy()
+        active = np.arange(len(u))
+        poles = self.poles[patch].reshape(-1, 16, 3)
+        for _ in range(_NEWTON):
+            if not active.size:
+                break
+            ua, va = u[active], v[active]
+            g = poles[active]
+            s, su, sv = _evaluate(g, ua, va, True)
+            r = x[active] - s
+            bu, bv, du1, dv1 = bspline_basis(ua), bspline_basis(va), bspline_basis(ua, 1), bspline_basis(va, 1)
+            suu = _combine(bspline_basis(ua, 2), bv, g)
+            suv = _combine(du1, dv1, g)
+            svv = _combine(bu, bspline_basis(va, 2), g)
+            a = (su * su).sum(-1) - (r * suu).sum(-1)
+            b = (su * sv).sum(-1) - (r * suv).sum(-1)
+            c = (sv * sv).sum(-1) - (r * svv).sum(-1)
+            ru, rv = (su * r).sum(-1), (sv * r).sum(-1)
+            det = a * c - b * b
+            newton = (det > 0) & (a > 0)
+            # where the Hessian is not positive definite (far from the surface): Gauss-Newton
+            a = np.where(newton, a, (su * su).sum(-1))
+            b = np.where(newton, b, (su * sv).sum(-1))
+            c = np.where(newton, c, (sv * sv).sum(-1))
+            det = a * c - b * b
+            ok = det > 1e-14 * (a * c + 1e-300)
+            det = np.where(ok, det, 1.0)
+            # a degenerate Jacobian falls back to a gradient step along each direction
+            du = np.where(ok, (c * ru - b * rv) / det, np.divide(ru, a, out=np.zeros_like(a), where=a > 0))
+            dv = np.where(ok, (a * rv - b * ru) / det, np.divide(rv, c, out=np.zeros_like(c), where=c > 0))
+            nu, nv = np.clip(ua + du, 0.0, 1.0), np.clip(va + dv, 0.0, 1.0)
+            u[active], v[active] = nu, nv
+            active = active[np.maximum(np.abs(nu - ua), np.abs(nv - va)) > 1e-12]
+        return u, v
+
+    def closest(self, points: np.ndarray, hint: Hits | None = None) -> Hits:
+        """The closest point on the limit surface of every row of ``points`` ``(q, 3)``.
+
+        Candidates: per patch depth, the patches of the nearest grid samples (up to
+        ``_CANDIDATE_PATCHES`` distinct ones: a foot point beyond a patch's edge lies on a neighbour), kept
+        when their sample is within that depth's covering radius of the nearest sample of any depth. The
+        nearest sample's patch is refined first by clamped Newton; the others only where that foot point
+        lies on the patch's border; the nearest foot point wins, or the nearest point of the pending
+        triangles where that is nearer. ``hint`` (the same points' hits on this layout at nearby control
+        vertices, e.g. the previous polish round's) is refined first, and searched from scratch only where
+        its foot point leaves the interior of its patch."""
+        x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        q = len(x)
+        best = np.full(q, np.inf)
+        patch = np.full(q, -1, dtype=np.int64)
+        uu, vv = np.zeros(q), np.zeros(q)
+        tri = np.full(q, -1, dtype=np.int64)
+        bary = np.zeros((q, 3))
+        todo = np.arange(q)
+        self._search()  # the sample trees and the pending triangles' index, built once per placement
+        if hint is not None and len(hint.patch) == q:
+            on = np.flatnonzero(hint.patch >= 0)
+            u, v = self.foot_points(hint.patch[on], hint.u[on], hint.v[on], x[on])
+            ok = (u > 0) & (u < 1) & (v > 0) & (v < 1)
+            rows = on[ok]
+            patch[rows], uu[rows], vv[rows] = hint.patch[rows], u[ok], v[ok]
+            best[rows] = np.linalg.norm(x[rows] - self.evaluate(patch[rows], uu[rows], vv[rows]), axis=1)
+            todo = np.setdiff1d(todo, rows)
+        self._search_patches(x, todo, best, patch, uu, vv)
+        if len(self.layout.triangles):
+            # only points that a pending triangle can be nearer to (bound from the triangles' centroids)
+            tree, reach = self._pending_index
+            near = np.flatnonzero(tree.query(x)[0] - reach < best)
+            if near.size:
+                hit = self._pending.closest(x[near])
+                nearer = hit.distance < best[near]
+                sel = near[nearer]
+                best[sel], patch[sel], tri[sel] = hit.distance[nearer], -1, hit.triangle[nearer]
+                bary[sel] = hit.barycentric[nearer]
+        return self._hits(patch, uu, vv, tri, bary, x)
+
+    def _search_patches(self, points: np.ndarray, todo: np.ndarray, best: np.ndarray, patch: np.ndarray,
+                        uu: np.ndarray, vv: np.ndarray) -> None:
+        """The candidate search of :meth:`closest` for rows ``todo``, written into the other arrays."""
+        if not todo.size:
+            return
+        x = points[todo]
+        q = len(x)
+        found = []
+        for tree, owner, params, radius in self._search():
+            k = min(_CANDIDATE_SAMPLES, tree.n)
+            dist, idx = tree.query(x, k=k)
+            dist, idx = dist.reshape(q, k), idx.reshape(q, k)
+            own = owner[idx]
+            first = np.ones((q, k), dtype=bool)
+            seen = (own[:, 1:, None] == own[:, None, :-1]) & np.tri(k - 1, k - 1, 0, dtype=bool)[None]
+            first[:, 1:] = ~seen.any(axis=2)
+            first &= np.cumsum(first, axis=1) <= _CANDIDATE_PATCHES
+            r, c = np.nonzero(first)
+            found.append((r, own[r, c], params[idx[r, c]], dist[r, c], dist[r, c] - radius))
+        if found:
+            r, cand, start, dist, reach = (np.concatenate(a) for a in zip(*found))
+            nearest = np.full(q, np.inf)
+            np.minimum.at(nearest, r, dist)
+            keep = reach <= nearest[r]
+            r, cand, start, dist = r[keep], cand[keep], start[keep], dist[keep]
+            # the nearest sample's patch first; the others only where its foot point is on the patch's border
+            order = np.lexsort((dist, r))
+            primary = np.zeros(r.size, dtype=bool)
+            primary[order[np.r_[True, r[order][1:] != r[order][:-1]]]] = True
+            u, v = np.zeros(r.size), np.zeros(r.size)
+            u[primary], v[primary] = self.foot_points(cand[primary], start[primary, 0], start[primary, 1],
+                                                      x[r[primary]])
+            inside = np.zeros(q, dtype=bool)
+            inside[r[primary]] = (u[primary] > 0) & (u[primary] < 1) & (v[primary] > 0) & (v[primary] < 1)
+            rest = ~primary & ~inside[r]
+            u[rest], v[rest] = self.foot_points(cand[rest], start[rest, 0], start[rest, 1], x[r[rest]])
+            done = primary | rest
+            r, cand, u, v = r[done], cand[done], u[done], v[done]
+            d = np.linalg.norm(x[r] - self.evaluate(cand, u, v), axis=1)
+            order = np.lexsort((d, r))
+            lead = order[np.r_[True, r[order][1:] != r[order][:-1]]]
+            rows = todo[r[lead]]
+            best[rows], patch[rows], uu[rows], vv[rows] = d[lead], cand[lead], u[lead], v[lead]
+
+    def _hits(self, patch, u, v, tri, bary, x: np.ndarray | None) -> Hits:
+        point = np.zeros((len(patch), 3))
+        normal = np.zeros((len(patch), 3))
+        on = patch >= 0
+        if on.any():
+            s, du, dv = self.evaluate(patch[on], u[on], v[on], derivatives=True)
+            point[on], normal[on] = s, _unit(np.cross(du, dv))
+        if (~on).any():
+            t = self.layout.triangles[tri[~on]]
+            a, b, c = (self.corner_points[t[:, i]] for i in range(3))
+            point[~on] = bary[~on, 0:1] * a + bary[~on, 1:2] * b + bary[~on, 2:3] * c
+            normal[~on] = _unit(np.cross(b - a, c - a))
+        dist = np.zeros(len(patch)) if x is None else np.linalg.norm(x - point, axis=1)
+        return Hits(patch, u, v, tri, bary, point, normal, dist)
+
+    # --- area samples ------------------------------------------------------------------------------------
+    def samples(self, density: int = 0) -> tuple[Hits, np.ndarray]:
+        """Area samples of the whole surface and their weights (areas, summing to the surface's area):
+        Gauss-Legendre points on every patch (more on larger patches; ``density`` adds points per side) and
+        the centroid of every pending triangle."""
+        dep = self.layout.depth
+        parts = []
+        for d in np.unique(dep):
+            sel = np.flatnonzero(dep == d)
+            n = _QUADRATURE.get(int(d), 1) + int(density)
+            g, w = np.polynomial.legendre.leggauss(n)
+            g, w = 0.5 * (g + 1.0), 0.5 * w
+            parts.append((np.repeat(sel, n * n), np.tile(np.repeat(g, n), sel.size), np.tile(np.tile(g, n), sel.size),
+                          np.tile(np.outer(w, w).ravel(), sel.size)))
+        patch = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
+        u = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
+        v = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
+        w = np.concatenate([p[3] for p in parts]) if parts else np.zeros(0)
+        n_t = len(self.layout.triangles)
+        patch = np.concatenate([patch, np.full(n_t, -1)])
+        u, v = np.concatenate([u, np.zeros(n_t)]), np.concatenate([v, np.zeros(n_t)])
+        tri = np.concatenate([np.full(len(w), -1), np.arange(n_t)])
+        bary = np.concatenate([np.zeros((len(w), 3)), np.full((n_t, 3), 1.0 / 3.0)])
+        hits = self._hits(patch, u, v, tri, bary, None)
+        area = np.zeros(len(patch))
+        on = patch >= 0
+        if on.any():
+            _, du, dv = self.evaluate(patch[on], u[on], v[on], derivatives=True)
+            area[on] = w * np.linalg.norm(np.cross(du, dv), axis=1)
+        if n_t:
+            t = self.layout.triangles
+            a, b, c = (self.corner_points[t[:, i]] for i in range(3))
+            area[~on] = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        return hits, area
+
+    def random_points(self, count: int, seed: int = 0) -> np.ndarray:
+        """``count`` points ``(count, 3)`` on the surface, drawn uniformly by area (seeded): pieces by area,
+        parameters uniformly, then resampled by the area element (sampling-importance resampling)."""
+        hits, area = self.samples()
+        piece = np.where(hits.patch >= 0, hits.patch, self.layout.n_patches + hits.triangle)
+        n_pieces = self.layout.n_patches + len(self.layout.triangles)
+        piece_area = np.bincount(piece, area, minlength=n_pieces)
+        rng = np.random.default_rng(seed)
+        m = 4 * int(count)
+        pick = rng.choice(n_pieces, size=m, p=piece_area / piece_area.sum())
+        u, v = rng.random(m), rng.random(m)
+        on = pick < self.layout.n_patches
+        points = np.zeros((m, 3))
+        weight = np.ones(m)
+        if on.any():
+            p, su, sv = self.evaluate(pick[on], u[on], v[on], derivatives=True)
+            points[on] = p
+            weight[on] = np.linalg.norm(np.cross(su, sv), axis=1) / piece_area[pick[on]]
+        if (~on).any():
+            flip = u + v > 1.0
+            u, v = np.where(flip, 1.0 - u, u), np.where(flip, 1.0 - v, v)
+            t = self.layout.triangles[pick[~on] - self.layout.n_patches]
+            a, b, c = (self.corner_points[t[:, i]] for i in range(3))
+            points[~on] = a + u[~on, None] * (b - a) + v[~on, None] * (c - a)
+        keep = rng.choice(m, size=int(count), replace=False, p=weight / weight.sum())
+        return points[keep]
+
+    # --- linear maps -------------------------------------------------------------------------------------
+    def rows(self, hits: Hits) -> sp.csr_matrix:
+        """``(q, n)`` sparse rows: ``rows @ V`` is the hit points for control vertices ``V`` (same hits)."""
+        q = len(hits.patch)
+        on = np.flatnonzero(hits.patch >= 0)
+        off = np.flatnonzero(hits.patch < 0)
+        parts = []
+        if on.size:
+            w = np.einsum("qa,qb->qab", bspline_basis(hits.u[on]), bspline_basis(hits.v[on])).reshape(-1)
+            cols = (16 * hits.patch[on][:, None] + np.arange(16)).ravel()
+            pick = sp.csr_matrix((w, (np.repeat(on, 16), cols)), shape=(q, self.layout.poles.shape[0]))
+            parts.append(pick @ self.layout.poles)
+        if off.size:
+            t = self.layout.triangles[hits.triangle[off]]
+            pick = sp.csr_matrix((hits.barycentric[off].ravel(), (np.repeat(off, 3), t.ravel())),
+                                 shape=(q, self.layout.corners.shape[0]))
+            parts.append(pick @ self.layout.corners)
+        if not parts:
+            return sp.csr_matrix((q, self.layout.n_control))
+        return sp.csr_matrix(sum(parts[1:], parts[0]))
+

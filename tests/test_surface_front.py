@@ -1,0 +1,33 @@
+"""The accuracy/complexity front of a surface run: non-dominated, in result.json, and --max-distance picks
+its simplest cage that meets the tolerance (or says none did)."""
+
+from __future__ import annotations
+
+import math
+
+from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.surface import front, reconstruct_surface
+from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
+
+SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+             generations=1, final_polish_rounds=5, simplify_history=False)
+
+
+def test_front_keeps_only_the_non_dominated():
+    evaluated = {8: (0.3, ("a",)), 12: (0.1, ("b",)), 16: (0.2, ("c",)), 20: (0.05, ("d",)), 24: (math.inf, ())}
+    assert [(n, c) for n, c, _ in front(evaluated)] == [(8, 0.3), (12, 0.1), (20, 0.05)]
+
+
+def test_the_runs_front_is_non_dominated_and_max_distance_picks_the_simplest():
+    target = surface_target(SURFACE_SAMPLES["inset_extrude"]().target, "ie")
+    result = reconstruct_surface(target, seed=2, **SMALL)
+    points = result.metrics["front"]
+    assert points and "tolerance_met" not in result.metrics
+    for p in points:
+        assert not any(q["vertices"] <= p["vertices"] and q["distance"] < p["distance"] and q is not p
+                       for q in points)
+    loose = points[0]["distance"] * 1.01
+    picked = reconstruct_surface(target, seed=2, max_distance=loose, **SMALL)
+    assert picked.metrics["n_control_vertices"] == points[0]["vertices"]
+    strict = reconstruct_surface(target, seed=2, max_distance=1e-12, **SMALL)
+    assert strict.metrics["tolerance_met"] is False
