@@ -89,12 +89,22 @@ class CurveConfig:
     threshold: float = 0.0
     stall_generations: int = 15
     max_seconds: float = 0.0
+    closure: Literal["auto", "closed", "open"] = dataclasses.field(default="auto", metadata={
+        "help": "closed (periodic) or open curve; auto: closed when the last point is about one sample spacing "
+                "from the first"})
+    find_corners: bool = dataclasses.field(default=True, metadata={
+        "help": "propose C0 corners (knot multiplicity = degree) at sharp turns of the data; off: smooth curves only"})
+    corner_angle: float = dataclasses.field(default=35.0, metadata={
+        "help": "smallest turning angle, in degrees, of a data point proposed as a corner"})
+    search_points: int = dataclasses.field(default=3000, metadata={
+        "help": "the search fits at most about this many of the points (metrics use all of them); 0: all points"})
 
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
         paper = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
-                     generations=300, stall_generations=0, threshold=-1.0)
+                     generations=300, stall_generations=0, threshold=-1.0, closure="open", find_corners=False,
+                     search_points=0)
         return _preset(cls, "curve", name, paper, overrides)
 
     def validated(self) -> CurveConfig:
@@ -124,6 +134,12 @@ class CurveConfig:
             raise ConfigError("stall-generations and max-control-points must be >= 0")
         if self.max_control_points and self.max_control_points < 4:
             raise ConfigError("max-control-points must be at least 4 (the template has 4)")
+        if self.closure not in ("auto", "closed", "open"):
+            raise ConfigError(f"closure must be auto, closed or open, not {self.closure!r}")
+        if not (_real(self.corner_angle) and 0.0 < self.corner_angle < 180.0):
+            raise ConfigError(f"corner-angle must lie in (0, 180) degrees, not {self.corner_angle!r}")
+        if not (isinstance(self.search_points, int) and (self.search_points == 0 or self.search_points >= 100)):
+            raise ConfigError(f"search-points must be 0 or at least 100, not {self.search_points!r}")
         return self
 
     def to_json(self) -> dict[str, Any]:

@@ -38,7 +38,7 @@ class _PointSet:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class CurveTarget(_PointSet):
-    """Ordered 2D target points with their bounding box and scale."""
+    """Ordered 2D or 3D target points with their bounding box and scale."""
 
     points: np.ndarray
     name: str = "points"
@@ -96,15 +96,15 @@ def load_curve_points(path: str | os.PathLike[str]) -> np.ndarray:
 
 
 def validate_curve_points(points: np.ndarray, source: str = "points") -> np.ndarray:
-    """Check an ordered 2D point array; returns it as float64 ``(n, 2)``."""
+    """Check an ordered 2D or 3D point array; returns it as float64 ``(n, 2)`` or ``(n, 3)``."""
     try:
         pts = np.asarray(points, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError(f"{source}: points must be numbers") from None
     if pts.ndim != 2:
-        raise InputError(f"{source}: expected rows of x, y (got an array of shape {pts.shape})")
-    if pts.shape[1] != 2:
-        raise InputError(f"{source}: expected 2 columns (x, y), got {pts.shape[1]}")
+        raise InputError(f"{source}: expected rows of x, y[, z] (got an array of shape {pts.shape})")
+    if pts.shape[1] not in (2, 3):
+        raise InputError(f"{source}: expected 2 or 3 columns (x, y[, z]), got {pts.shape[1]}")
     if not np.all(np.isfinite(pts)):
         bad = int(np.argwhere(~np.isfinite(pts))[0, 0])
         raise InputError(f"{source}: point {bad + 1} is NaN or infinite")
