@@ -136,9 +136,57 @@ def point_to_spline(spline: BSpline, points: np.ndarray, periodic: bool = False,
     return dist.reshape(len(p), k).min(axis=1)
 
 
+def data_model(points: np.ndarray, closed: bool = False, corners: np.ndarray | None = None,
+               per_segment: int = 8) -> np.ndarray:
+    """A dense polyline through the data: centripetal Catmull-Rom pieces between consecutive points.
+
+    The local model the curve -> data distance is measured against: a smooth curve through sparse samples
+    deviates from their chords by the sagitta, but not from this model. End points and ``corners`` (indices)
+    are kept sharp (the missing neighbour is the reflection of the next point). ``per_segment`` samples per
+    piece; 1 gives the data's own polyline.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    m = len(p)
+    if per_segment <= 1 or m < 3:
+        return np.vstack([p, p[:1]]) if closed else p
+    i1 = np.arange(m) if closed else np.arange(m - 1)
+    i2 = (i1 + 1) % m
+    p1, p2 = p[i1], p[i2]
+    p0 = p[(i1 - 1) % m].copy()
+    p3 = p[(i2 + 1) % m].copy()
+    sharp = np.zeros(m, dtype=bool)
+    if corners is not None and len(corners):
+        sharp[np.asarray(corners, dtype=np.int64) % m] = True
+    if not closed:
+        sharp[0] = sharp[-1] = True
+    left, right = sharp[i1], sharp[i2]
+    p0[left] = 2.0 * p1[left] - p2[left]
+    p3[right] = 2.0 * p2[right] - p1[right]
+
+    def knot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.maximum(np.sqrt(np.linalg.norm(b - a, axis=1)), 1e-300)[:, None]
+
+    t1 = knot(p0, p1)
+    t2 = t1 + knot(p1, p2)
+    t3 = t2 + knot(p2, p3)
+    u = np.linspace(0.0, 1.0, per_segment, endpoint=False)[None, :]
+    t = (t1 + u * (t2 - t1))[..., None]  # (segments, samples, 1)
+    t0, t1, t2, t3 = 0.0, t1[:, None], t2[:, None], t3[:, None]
+    P0, P1, P2, P3 = (q[:, None, :] for q in (p0, p1, p2, p3))
+    a1 = ((t1 - t) * P0 + (t - t0) * P1) / (t1 - t0)
+    a2 = ((t2 - t) * P1 + (t - t1) * P2) / (t2 - t1)
+    a3 = ((t3 - t) * P2 + (t - t2) * P3) / (t3 - t2)
+    b1 = ((t2 - t) * a1 + (t - t0) * a2) / (t2 - t0)
+    b2 = ((t3 - t) * a2 + (t - t1) * a3) / (t3 - t1)
+    c = ((t2 - t) * b1 + (t - t1) * b2) / (t2 - t1)
+    dense = c.reshape(-1, p.shape[1])
+    return np.vstack([dense, p[:1] if closed else p[-1:]])
+
+
 def curve_to_points(spline: BSpline, points: np.ndarray, closed: bool = False, per_span: int = 16,
-                    extra: np.ndarray | None = None) -> np.ndarray:
-    """Distance of curve samples to the data's polyline (closed: with the closing segment).
+                    extra: np.ndarray | None = None, model: np.ndarray | None = None) -> np.ndarray:
+    """Distance of curve samples to the data (their polyline, or ``model``: a dense polyline such as
+    :func:`data_model`; closed data get their closing segment).
 
     Samples: ``per_span`` per knot span plus the parameters ``extra`` (e.g. midpoints between the data's foot
     points, where an excursion between two neighbouring data points would show). Returns one distance per sample.
@@ -148,17 +196,20 @@ def curve_to_points(spline: BSpline, points: np.ndarray, closed: bool = False, p
     u = (knots[:-1, None] + np.diff(knots)[:, None] * np.linspace(0.0, 1.0, per_span, endpoint=False)[None]).ravel()
     u = np.concatenate([u, [1.0], [] if extra is None else np.asarray(extra, dtype=np.float64).ravel()])
     p = np.asarray(points, dtype=np.float64)
-    poly = np.vstack([p, p[:1]]) if closed else p
+    poly = model if model is not None else (np.vstack([p, p[:1]]) if closed else p)
     return point_to_polyline(spline(np.clip(u, 0.0, 1.0)), poly)
 
 
-def two_sided(spline: BSpline, points: np.ndarray, closed: bool = False, per_span: int = 16,
-              dense: int = 2048) -> tuple[np.ndarray, np.ndarray]:
-    """``(data -> curve, curve -> data)`` distances: each data point to the curve, and curve samples (per span and
-    between consecutive data foot points) to the data's polyline."""
+def two_sided(spline: BSpline, points: np.ndarray, closed: bool = False, per_span: int = 32,
+              corners: np.ndarray | None = None, dense: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+    """``(data -> curve, curve -> data)`` distances: each data point to the curve, and curve samples (``per_span``
+    per knot span) to the data's local model (:func:`data_model`; the plain polyline above 20 000 points)."""
     p = np.asarray(points, dtype=np.float64)
-    there = point_to_spline(spline, p, periodic=closed, dense=max(dense, 4 * len(spline.t)))
-    return there, curve_to_points(spline, p, closed, per_span)
+    spans = len(np.unique(spline.t[(spline.t >= 0) & (spline.t <= 1)]))
+    there = point_to_spline(spline, p, periodic=closed, dense=max(dense, 16 * spans),
+                            seeds=6 if len(p) < 100_000 else 2)
+    model = data_model(p, closed, corners, per_segment=8 if len(p) <= 20_000 else 1)
+    return there, curve_to_points(spline, p, closed, per_span, model=model)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, len2: np.ndarray) -> np.ndarray:

@@ -37,7 +37,7 @@ from ..errors import OpError
 from ..ga import GAConfig, GeneticAlgorithm, GenerationReport, RunResult
 from ..geometry import bspline
 from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
-from ..geometry.distance import chord_length_params, curve_to_points, foot_points, index_wise, point_to_spline
+from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_spline, two_sided
 from ..ops import curve as curve_ops
 from .config import CurveConfig
 from .curve_model import CurveModel
@@ -204,9 +204,10 @@ class CurveProblem:
             return genome
         corners, n = self.structure(genome)
         pool = tuple(int(c) for c in self.model.candidates)
-        walks = [self._corner_walk(self._valid(pool), n)]  # all candidates first: it bounds the other searches
-        if self._valid(corners) != self._valid(pool):
-            walks.append(self._corner_walk(corners, n))
+        walks = [self._corner_walk(self._valid(pool), n)]  # from every candidate, dropping those that do not pay
+        own = self._valid(corners)
+        if own != walks[0][1]:
+            walks.append((*self._count_walk(own, n)[:1], own, self._count_walk(own, n)[1]))
         best = min(walks, key=lambda r: (r[0], len(r[1])))
         _, best_corners, best_n = best
         counts = self.model.allocation(best_corners, best_n)
@@ -369,20 +370,19 @@ class CurveProblem:
 
 
 def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,
-                  corners: tuple[int, ...] = (), max_distance: float | None = None) -> dict[str, Any]:
+                  corners: tuple[int, ...] = (), max_distance: float | None = None,
+                  data_corners: np.ndarray | None = None) -> dict[str, Any]:
     """Distances between data and curve both ways, normalized by the data's bounding-box diagonal.
 
     ``data_to_fit_*``: each data point to the curve; ``fit_to_data_*``: curve samples (32 per knot span) to
-    the data's polyline (closed: with its closing segment). ``tolerance_met`` when ``max_distance`` is given:
-    both maxima within it. The older keys (``mean_distance``, ``max_distance``, ...) are data -> curve.
+    the data's local model (:func:`~gsr_cad.geometry.distance.data_model`, sharp at ``data_corners``; closed
+    data with their closing piece). ``tolerance_met`` when ``max_distance`` is given: both maxima within it.
+    The older keys (``mean_distance``, ``max_distance``, ...) are data -> curve.
     """
     pts = target.points if isinstance(target, CurveTarget) else np.asarray(target, dtype=np.float64)
     diag = float(np.linalg.norm(np.ptp(pts, axis=0)))
     spline = bspline.make_spline(ctrl, degree, closed, corners)
-    spans = len(np.unique(spline.t[(spline.t >= 0) & (spline.t <= 1)]))
-    seeds = 6 if len(pts) < 100_000 else 2
-    geo = point_to_spline(spline, pts, periodic=closed, dense=max(2048, 16 * spans), seeds=seeds)
-    back = curve_to_points(spline, pts, closed, per_span=32)
+    geo, back = two_sided(spline, pts, closed, per_span=32, corners=data_corners)
     idx = index_wise(spline(np.linspace(0.0, 1.0, len(pts), endpoint=not closed)), pts)
     out: dict[str, Any] = {
         "mean_distance": float(geo.mean() / diag),
@@ -449,15 +449,18 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     best = tuple(run.best_genome)
     corners: tuple[int, ...] = ()
     template = problem.template
+    data_corners = None
     if config.polish:
-        fitted, corners, _, _ = problem.final(best)
+        fitted, corners, search_corners, _ = problem.final(best)
+        data_corners = problem.prepared.search[list(search_corners)]
         template = problem.result_template(fitted)
         final = problem.history(fitted, corners, template)
     else:
         final = best
     ctrl = genome_mod.replay(template, final).points
     prep = problem.prepared
-    metrics = curve_metrics(ctrl, prep.points, problem.degree, problem.closed, corners, config.max_distance)
+    metrics = curve_metrics(ctrl, prep.points, problem.degree, problem.closed, corners, config.max_distance,
+                            data_corners)
     metrics.update({
         "fitness": float(problem.cost(best)),
         "fitness_kind": "penalised least-squares error" if config.polish else f"sum of {config.fitness} distances",

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..geometry import bspline
 from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine
-from ..geometry.distance import curve_to_points
+from ..geometry.distance import curve_to_points, data_model
 from .config import CurveConfig
 
 Key = tuple[int, int]  # a segment: search-point indices (first, last), last may exceed the count (wraps, closed)
@@ -56,6 +56,7 @@ class CurveModel:
         self.m = len(points)
         self.diag, self.limit, self.lo, self.hi = diag, limit, lo, hi
         self._fits: dict[tuple[Key, int], SegmentFit] = {}
+        self._models: dict[Key, np.ndarray] = {}
         self._need: dict[Key, int] = {}
         self._lower: dict[Key, int] = {}  # proven lower bounds of need()
         self.upto: int | None = None  # the best known total: segments needing more are not searched further
@@ -114,17 +115,21 @@ class CurveModel:
         limit = self.limit
         if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
             fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)  # a tolerance is a maximum
-        out = self._measure(pts, fit, closed)
+        out = self._measure(key, pts, fit)
         self._fits[(key, n)] = out
         return out
 
-    def _measure(self, pts: np.ndarray, fit: CurveFit, closed: bool) -> SegmentFit:
+    def _measure(self, key: Key, pts: np.ndarray, fit: CurveFit) -> SegmentFit:
+        closed = key == PERIODIC
+        model = self._models.get(key)
+        if model is None:  # the data's local model (sharp at the segment's ends, which are corners or ends)
+            model = self._models[key] = data_model(pts, closed)
         spline = bspline.make_spline(fit.ctrl, self.degree, closed)
         u = np.sort(fit.params)
         mids = 0.5 * (u[:-1] + u[1:])
         if closed:
             mids = np.concatenate([mids, [np.mod(0.5 * (u[-1] + u[0] + 1.0), 1.0)]])
-        back = curve_to_points(spline, pts, closed, per_span=8, extra=mids)
+        back = curve_to_points(spline, pts, closed, per_span=8, extra=mids, model=model)
         gaps = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]) if closed else pts, axis=0), axis=1)
         return SegmentFit(fit, float(np.sum(fit.distances ** 2)), float(fit.distances.max()), float(back.max()),
                           0.5 * float(gaps.max()))
@@ -135,14 +140,14 @@ class CurveModel:
         if self.config.fitness != "geometric":
             return quick.fit
         pts = self._fit_points(key)
-        fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo, hi=self.hi,
+        fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=150, lo=self.lo, hi=self.hi,
                         rtol=1e-7, warm_params=quick.fit.params, closed=key == PERIODIC)
         limit = self.limit
 
         def rank(f: CurveFit) -> tuple[bool, float]:
             if limit is None:
                 return False, f.rms
-            return self._measure(pts, f, key == PERIODIC).both_max / self.diag > limit, f.rms
+            return self._measure(key, pts, f).both_max / self.diag > limit, f.rms
 
         return min((fit, quick.fit), key=rank)
 
@@ -162,6 +167,9 @@ class CurveModel:
         bound = self._lower.get(key, lo)
         if upto is not None and bound > upto:
             return bound
+        if upto is not None and not self.meets(key, upto, limit):
+            self._lower[key] = upto + 1  # one fit settles a segment that cannot beat the best known total
+            return upto + 1
         if bound == lo and self.meets(key, lo, limit):
             self._need[key] = lo
             return lo
