@@ -23,7 +23,7 @@ from scipy.sparse.linalg import splu
 from . import bspline
 from .distance import chord_length_params, spline_foot_points
 
-_DENSE_COLUMNS = 64  # up to this many unknowns the dense (better conditioned) solver is used
+_DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,26 +40,30 @@ class CurveFit:
         return float(np.sqrt(np.mean(self.distances ** 2)))
 
 
-def _solve_dense(a: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Least squares ``a x = rhs``: Cholesky of the normal equations plus one refinement step on the residual
-    (about as accurate as an orthogonal solve for these well-conditioned bases, and free of the BLAS thread
-    overhead of an SVD); an SVD solve when the normal matrix is singular."""
-    try:
-        factor = sla.cho_factor(a.T @ a, check_finite=False)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(a, rhs, rcond=None)[0]
-    x = sla.cho_solve(factor, a.T @ rhs, check_finite=False)
-    x += sla.cho_solve(factor, a.T @ (rhs - a @ x), check_finite=False)
-    if not np.all(np.isfinite(x)):
-        return np.linalg.lstsq(a, rhs, rcond=None)[0]
-    return x
-
-
 def _solve(a: sp.csr_array, rhs: np.ndarray) -> np.ndarray:
-    """Least squares ``a x = rhs`` for a large sparse ``a``, through its sparse banded normal equations."""
+    """Least squares ``a x = rhs`` for a sparse B-spline basis ``a``, through its normal equations.
+
+    The normal matrix is banded and built sparse (no multi-threaded BLAS on tall matrices, which costs more
+    than it saves on a shared machine); small systems are factored densely by Cholesky, large ones by sparse
+    LU. One refinement step on the residual recovers the accuracy the squared condition number costs. An
+    SVD solve covers a singular normal matrix (fewer data than unknowns).
+    """
     ata = sp.csc_matrix(a.T @ a)
-    ata = ata + sp.identity(ata.shape[0], format="csc") * (1e-14 * float(abs(ata.diagonal()).max()))
-    return splu(ata).solve(np.asarray(a.T @ rhs))
+    atb = np.asarray(a.T @ rhs)
+    try:
+        if ata.shape[0] <= _DENSE_COLUMNS:
+            factor = sla.cho_factor(ata.toarray(), check_finite=False)
+            solve = lambda b: sla.cho_solve(factor, b, check_finite=False)  # noqa: E731
+        else:
+            lu = splu(ata + sp.identity(ata.shape[0], format="csc") * (1e-14 * float(abs(ata.diagonal()).max())))
+            solve = lu.solve
+        x = solve(atb)
+        x += solve(np.asarray(a.T @ (rhs - a @ x)))
+    except (np.linalg.LinAlgError, RuntimeError):
+        x = np.full(atb.shape, np.nan)
+    if not np.all(np.isfinite(x)):
+        return np.linalg.lstsq(a.toarray(), rhs, rcond=None)[0]
+    return x
 
 
 def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: int,
@@ -72,14 +76,8 @@ def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: 
     solve (scipy's ``lsq_linear``) keeps every point inside it, so the result stays a valid op target.
     """
     basis = bspline.form_design(n_ctrl, params, degree, closed=closed)
-    small = n_ctrl - (0 if closed else 2) <= _DENSE_COLUMNS
-    if small:
-        basis = basis.toarray()
     if closed:
         inner, rhs = basis, np.array(target, dtype=np.float64)
-    elif small:
-        rhs = target - np.outer(basis[:, 0], target[0]) - np.outer(basis[:, -1], target[-1])
-        inner = basis[:, 1:-1]
     else:
         col = basis.tocsc()
         first, last = col[:, [0]].toarray(), col[:, [n_ctrl - 1]].toarray()
@@ -87,12 +85,14 @@ def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: 
         inner = sp.csr_array(col[:, 1:-1])
     if weights is not None:
         root = np.sqrt(weights)
-        inner = inner * root[:, None] if small else sp.csr_array(sp.diags_array(root) @ inner)
+        inner = sp.csr_array(sp.diags_array(root) @ inner)
         rhs = rhs * root[:, None]
-    sol = _solve_dense(inner, rhs) if small else _solve(inner, rhs)
+    sol = _solve(inner, rhs)
+    small = inner.shape[1] <= _DENSE_COLUMNS
     if small and lo is not None and hi is not None and (np.any(sol < lo) or np.any(sol > hi)):
+        dense = inner.toarray()
         sol = np.column_stack([
-            lsq_linear(inner, rhs[:, k], bounds=(lo[k], hi[k]), method="bvls").x for k in range(rhs.shape[1])
+            lsq_linear(dense, rhs[:, k], bounds=(lo[k], hi[k]), method="bvls").x for k in range(rhs.shape[1])
         ])
     return sol if closed else np.vstack([target[:1], sol, target[-1:]])
 

@@ -59,13 +59,27 @@ def _greedy_path(tree: cKDTree, p: np.ndarray, start: int) -> np.ndarray:
     return order
 
 
+def spread(points: np.ndarray, k: int = 10) -> float:
+    """Median over the points of how far their ``k`` nearest neighbours spread across the main direction
+    (second over first principal variance): near 0 along a curve, near 1 in a 2D cloud."""
+    p = np.asarray(points, dtype=np.float64)
+    _, idx = cKDTree(p).query(p, k=min(k, len(p)))
+    local = p[idx] - p[idx].mean(axis=1, keepdims=True)
+    eig = np.linalg.eigvalsh(np.einsum("nki,nkj->nij", local, local))  # ascending
+    return float(np.median(eig[:, -2] / np.maximum(eig[:, -1], 1e-300)))
+
+
 def nearest_neighbour_order(points: np.ndarray) -> np.ndarray:
     """Indices ordering the points along a nearest-neighbour path (two sweeps: the second starts where the
-    first ended, which is usually an end of an open curve); InputError when the path still jumps."""
+    first ended, which is usually an end of an open curve); InputError when the points do not lie along a
+    curve or the path still jumps."""
     p = np.asarray(points, dtype=np.float64)
     if len(p) > MAX_ORDERED:
         raise InputError(f"the {len(p)} points are not in curve order and are too many to order "
                          f"(at most {MAX_ORDERED}); sort them along the curve first")
+    if spread(p) > 0.25:
+        raise InputError("the points are not in curve order and do not lie along one curve (they spread "
+                         "like a cloud); sort them along the curve first")
     tree = cKDTree(p)
     far = int(np.argmax(np.linalg.norm(p - p.mean(axis=0), axis=1)))
     order = _greedy_path(tree, p, int(_greedy_path(tree, p, far)[-1]))
@@ -106,13 +120,14 @@ def _turning(p: np.ndarray, s: np.ndarray, total: float, h: float, closed: bool)
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 35.0) -> np.ndarray:
+def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 25.0,
+                      with_angles: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Indices of points where the data turn sharply: C0 corners rather than tight smooth bends.
 
     The turning angle is measured between the chords to the curve points an arc length ``h`` before and after
     each point (``h`` a few sample spacings, at least 0.4 % of the length). A corner turns by at least
     ``min_angle`` degrees and keeps most of its angle at ``h / 2`` (a smooth bend halves it); one index (the
-    sharpest) is kept per run of such points.
+    sharpest) is kept per run of such points. ``with_angles``: also their turning angles (degrees).
     """
     p = np.asarray(points, dtype=np.float64)
     steps = _steps(np.vstack([p, p[:1]]) if closed else p)
@@ -126,14 +141,15 @@ def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 35.0)
         flag &= (s > h) & (s < total - h)
     idx = np.flatnonzero(flag)
     if idx.size == 0:
-        return idx
+        return (idx, np.zeros(0)) if with_angles else idx
     # Split into runs of nearby flagged points (arc distance <= h), keep the sharpest of each run.
     gaps = np.diff(s[idx]) > h
     runs = np.split(idx, np.flatnonzero(gaps) + 1)
     if closed and len(runs) > 1 and s[runs[0][0]] + total - s[runs[-1][-1]] <= h:
         runs[0] = np.concatenate([runs.pop(), runs[0]])
     score = small + big
-    return np.sort(np.array([int(r[np.argmax(score[r])]) for r in runs], dtype=np.int64))
+    out = np.sort(np.array([int(r[np.argmax(score[r])]) for r in runs], dtype=np.int64))
+    return (out, np.minimum(big[out], small[out])) if with_angles else out
 
 
 def subsample(points: np.ndarray, limit: int, keep: np.ndarray, closed: bool) -> np.ndarray:

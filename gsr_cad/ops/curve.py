@@ -153,6 +153,18 @@ def template(points: np.ndarray, margin: float = 0.0, closed: bool = False, degr
     return Polygon(ctrl, lo, hi, closed=closed, degree=degree)
 
 
+def template_from_config(config: dict) -> Polygon:
+    """The template a curve result's genome replays on, from ``result.config`` (``template``, ``bounds``,
+    ``closed``, ``scheme``); InputError when it has none."""
+    if "template" not in config:
+        raise InputError("the result has no config.template: its modelling history cannot be replayed")
+    pts = np.asarray(config["template"], dtype=np.float64)
+    big = float(np.finfo(float).max)
+    lo, hi = config.get("bounds") or ((-big,) * pts.shape[-1], (big,) * pts.shape[-1])
+    degree = 2 if config.get("scheme") == "chaikin" else 3
+    return Polygon(pts, tuple(lo), tuple(hi), closed=bool(config.get("closed", False)), degree=degree)
+
+
 def add_point(polygon: Polygon, index: int, position: tuple[float, ...]) -> Polygon:
     """Insert ``position`` so it becomes ``points[index]``; needs ``1 <= index <= n - 1`` (closed: ``<= n``) and
     a point in the box. Corners after the insertion keep their points."""

@@ -94,7 +94,7 @@ class CurveConfig:
                 "from the first"})
     find_corners: bool = dataclasses.field(default=True, metadata={
         "help": "propose C0 corners (knot multiplicity = degree) at sharp turns of the data; off: smooth curves only"})
-    corner_angle: float = dataclasses.field(default=35.0, metadata={
+    corner_angle: float = dataclasses.field(default=25.0, metadata={
         "help": "smallest turning angle, in degrees, of a data point proposed as a corner"})
     search_points: int = dataclasses.field(default=3000, metadata={
         "help": "the search fits at most about this many of the points (metrics use all of them); 0: all points"})

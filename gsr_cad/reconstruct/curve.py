@@ -59,6 +59,7 @@ class PreparedCurve:
     reordered: bool
     candidates: np.ndarray
     search: np.ndarray
+    angles: np.ndarray
 
 
 def prepare_curve(points: np.ndarray, config: CurveConfig) -> PreparedCurve:
@@ -75,10 +76,11 @@ def prepare_curve(points: np.ndarray, config: CurveConfig) -> PreparedCurve:
     if closed and len(pts) > 4 and np.linalg.norm(pts[-1] - pts[0]) <= 1e-9 * diag:
         pts = pts[:-1]
     use_corners = config.find_corners and config.polish
-    cand = corner_candidates(pts, closed, config.corner_angle) if use_corners else np.zeros(0, dtype=np.int64)
+    cand, angles = (corner_candidates(pts, closed, config.corner_angle, with_angles=True) if use_corners
+                    else (np.zeros(0, dtype=np.int64), np.zeros(0)))
     limit = config.search_points if config.polish else 0
     search = subsample(pts, limit, cand, closed) if limit else np.arange(len(pts))
-    return PreparedCurve(pts, closed, reordered, cand, search)
+    return PreparedCurve(pts, closed, reordered, cand, search, angles)
 
 
 class CurveProblem:
@@ -105,7 +107,7 @@ class CurveProblem:
         limit = config.max_distance * (0.9 if subsampled else 1.0) if config.max_distance else None
         cand = np.searchsorted(prep.search, prep.candidates)
         self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
-                                self.lo, self.hi)
+                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle])
         self.limit = limit
         self._sites = self.points[cand] if cand.size else np.zeros((0, self.points.shape[1]))
         self._site_tree = cKDTree(self._sites) if cand.size else None

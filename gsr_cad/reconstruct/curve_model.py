@@ -50,8 +50,10 @@ class CurveModel:
     """Segment fits and counts for one (search) point set."""
 
     def __init__(self, points: np.ndarray, closed: bool, candidates: np.ndarray, config: CurveConfig,
-                 degree: int, diag: float, limit: float | None, lo: np.ndarray, hi: np.ndarray):
+                 degree: int, diag: float, limit: float | None, lo: np.ndarray, hi: np.ndarray,
+                 sharp: np.ndarray | None = None):
         self.points, self.closed, self.config, self.degree = points, closed, config, degree
+        self.sharp = np.zeros(0, dtype=np.int64) if sharp is None else np.asarray(sharp, dtype=np.int64)
         self.candidates = np.asarray(candidates, dtype=np.int64)
         self.m = len(points)
         self.diag, self.limit, self.lo, self.hi = diag, limit, lo, hi
@@ -85,9 +87,10 @@ class CurveModel:
         return self.degree + 1
 
     def max_count(self, key: Key) -> int:
-        """No fixed cap: as many control points as the segment has points (interpolation), or the user's cap."""
+        """No fixed cap below what the data can support: two thirds of the segment's points (nearer to
+        interpolation the placement is ill-posed), or the user's cap."""
         size = self.m if key == PERIODIC else key[1] - key[0] + 1
-        cap = max(self.degree + 1, size)
+        cap = max(self.degree + 1, (2 * size) // 3)
         return min(cap, self.config.max_control_points) if self.config.max_control_points else cap
 
     def _fit_points(self, key: Key) -> np.ndarray:
@@ -167,7 +170,7 @@ class CurveModel:
         bound = self._lower.get(key, lo)
         if upto is not None and bound > upto:
             return bound
-        if upto is not None and not self.meets(key, upto, limit):
+        if upto is not None and (self._spans_sharp(key) or not self.meets(key, upto, limit)):
             self._lower[key] = upto + 1  # one fit settles a segment that cannot beat the best known total
             return upto + 1
         if bound == lo and self.meets(key, lo, limit):
@@ -186,9 +189,11 @@ class CurveModel:
             if self.meets(key, n, limit):
                 break
             bad = n
-            if n >= top:
-                self._need[key] = top
-                return top
+            if n >= top:  # the limit is out of reach: the tried count that came closest
+                tried = [c for (k, c) in self._fits if k == key]
+                best = min(tried, key=lambda c: (self._fits[(key, c)].both_max, c))
+                self._need[key] = best
+                return best
         good = n
         while good - bad > 1:
             mid = (good + bad) // 2
@@ -198,6 +203,15 @@ class CurveModel:
                 bad = mid
         self._need[key] = good
         return good
+
+    def _spans_sharp(self, key: Key) -> bool:
+        """Whether a sharp candidate (turning twice the corner angle) lies strictly inside the segment: smoothing
+        such a kink within a tolerance takes more points than any structure that keeps it (pruned unfitted)."""
+        if key == PERIODIC:
+            return self.sharp.size > 0
+        inside = (self.sharp > key[0]) & (self.sharp < key[1])
+        inside |= (self.sharp + self.m > key[0]) & (self.sharp + self.m < key[1])
+        return bool(inside.any())
 
     def allocation(self, corners: tuple[int, ...], n: int) -> tuple[int, ...] | None:
         """Counts per segment for a total of ``n`` control points (None when ``n`` is too few).
