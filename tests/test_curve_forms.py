@@ -143,3 +143,15 @@ def test_corner_candidates_find_polygon_corners_not_smooth_bends():
     th = np.linspace(0, 2 * np.pi, 400, endpoint=False)
     ellipse = np.column_stack([3 * np.cos(th), 0.5 * np.sin(th)])
     assert corner_candidates(ellipse, closed=True).size == 0
+
+
+def test_closed_chaikin_converges_to_the_periodic_quadratic_bspline():
+    from gsr_cad.geometry.chaikin import refine_closed
+    from gsr_cad.geometry.distance import point_to_spline
+
+    c = ctrl(7, seed=9)
+    fine = refine_closed(c, 7)
+    assert len(fine) == 7 * 2 ** 7
+    spline = bspline.make_spline(c, 2, closed=True)
+    assert point_to_spline(spline, fine, periodic=True).max() < 1e-4 * np.ptp(c)
+    np.testing.assert_allclose(refine_closed(c, 1)[:2], [0.75 * c[0] + 0.25 * c[1], 0.25 * c[0] + 0.75 * c[1]])

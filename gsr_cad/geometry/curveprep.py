@@ -141,15 +141,40 @@ def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 25.0,
         flag &= (s > h) & (s < total - h)
     idx = np.flatnonzero(flag)
     if idx.size == 0:
-        return (idx, np.zeros(0)) if with_angles else idx
+        idx = np.zeros(0, dtype=np.int64)
     # Split into runs of nearby flagged points (arc distance <= h), keep the sharpest of each run.
     gaps = np.diff(s[idx]) > h
-    runs = np.split(idx, np.flatnonzero(gaps) + 1)
+    runs = [r for r in np.split(idx, np.flatnonzero(gaps) + 1) if r.size]
     if closed and len(runs) > 1 and s[runs[0][0]] + total - s[runs[-1][-1]] <= h:
         runs[0] = np.concatenate([runs.pop(), runs[0]])
     score = small + big
-    out = np.sort(np.array([int(r[np.argmax(score[r])]) for r in runs], dtype=np.int64))
-    return (out, np.minimum(big[out], small[out])) if with_angles else out
+    out = np.array([int(r[np.argmax(score[r])]) for r in runs], dtype=np.int64)
+    angle = np.minimum(big, small)
+    # Isolated kinks of the polyline itself (e.g. both ends of a short trailing edge, closer than h): a vertex
+    # turning >= 60 deg with a neighbour turning less than a third of that (a pixel staircase turns at every step).
+    kink = _vertex_turning(p, closed)
+    before, after = np.roll(kink, 1), np.roll(kink, -1)
+    isolated = (kink >= max(60.0, min_angle)) & (np.minimum(before, after) < kink / 3.0)
+    if not closed:
+        isolated[[0, -1]] = False
+    extra = np.flatnonzero(isolated)
+    if extra.size:
+        near = np.abs(out[:, None] - extra[None, :]).min(axis=1) <= 2 if out.size else np.zeros(0, dtype=bool)
+        out = np.concatenate([out[~near], extra])
+        angle[extra] = np.maximum(angle[extra], kink[extra])
+    out = np.unique(out)
+    return (out, angle[out]) if with_angles else out
+
+
+def _vertex_turning(p: np.ndarray, closed: bool) -> np.ndarray:
+    """Turning angle (degrees) of the polyline at each vertex, from its immediate neighbours (ends: 0 if open)."""
+    a = p - np.roll(p, 1, axis=0)
+    b = np.roll(p, -1, axis=0) - p
+    cos = np.einsum("ij,ij->i", a, b) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+    out = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    if not closed:
+        out[[0, -1]] = 0.0
+    return out
 
 
 def subsample(points: np.ndarray, limit: int, keep: np.ndarray, closed: bool) -> np.ndarray:
