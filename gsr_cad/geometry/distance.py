@@ -184,12 +184,14 @@ def data_model(points: np.ndarray, closed: bool = False, corners: np.ndarray | N
 
 
 def curve_to_points(spline: BSpline, points: np.ndarray, closed: bool = False, per_span: int = 16,
-                    extra: np.ndarray | None = None, model: np.ndarray | None = None) -> np.ndarray:
+                    extra: np.ndarray | None = None, model: np.ndarray | None = None,
+                    with_samples: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Distance of curve samples to the data (their polyline, or ``model``: a dense polyline such as
     :func:`data_model`; closed data get their closing segment).
 
     Samples: ``per_span`` per knot span plus the parameters ``extra`` (e.g. midpoints between the data's foot
-    points, where an excursion between two neighbouring data points would show). Returns one distance per sample.
+    points, where an excursion between two neighbouring data points would show). Returns one distance per sample
+    (and the samples, with ``with_samples``).
     """
     t = spline.t
     knots = np.unique(t[(t >= 0.0) & (t <= 1.0)])
@@ -197,19 +199,23 @@ def curve_to_points(spline: BSpline, points: np.ndarray, closed: bool = False, p
     u = np.concatenate([u, [1.0], [] if extra is None else np.asarray(extra, dtype=np.float64).ravel()])
     p = np.asarray(points, dtype=np.float64)
     poly = model if model is not None else (np.vstack([p, p[:1]]) if closed else p)
-    return point_to_polyline(spline(np.clip(u, 0.0, 1.0)), poly)
+    samples = spline(np.clip(u, 0.0, 1.0))
+    dist = point_to_polyline(samples, poly)
+    return (dist, samples) if with_samples else dist
 
 
 def two_sided(spline: BSpline, points: np.ndarray, closed: bool = False, per_span: int = 32,
-              corners: np.ndarray | None = None, dense: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+              corners: np.ndarray | None = None, dense: int = 2048, with_samples: bool = False) -> tuple:
     """``(data -> curve, curve -> data)`` distances: each data point to the curve, and curve samples (``per_span``
-    per knot span) to the data's local model (:func:`data_model`; the plain polyline above 20 000 points)."""
+    per knot span) to the data's local model (:func:`data_model`; the plain polyline above 20 000 points).
+    ``with_samples``: the curve samples as a third element."""
     p = np.asarray(points, dtype=np.float64)
     spans = len(np.unique(spline.t[(spline.t >= 0) & (spline.t <= 1)]))
     there = point_to_spline(spline, p, periodic=closed, dense=max(dense, 16 * spans),
                             seeds=6 if len(p) < 100_000 else 2)
     model = data_model(p, closed, corners, per_segment=8 if len(p) <= 20_000 else 1)
-    return there, curve_to_points(spline, p, closed, per_span, model=model)
+    back = curve_to_points(spline, p, closed, per_span, model=model, with_samples=with_samples)
+    return (there, *back) if with_samples else (there, back)
 
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, ab: np.ndarray, len2: np.ndarray) -> np.ndarray:

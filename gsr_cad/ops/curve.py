@@ -221,6 +221,10 @@ class AddPoint(Op):
     def __post_init__(self) -> None:
         object.__setattr__(self, "index", _index(self.index, "add_point index"))
         object.__setattr__(self, "position", _pair(self.position, "add_point position"))
+        object.__setattr__(self, "_hash", hash((1, self.index, self.position)))
+
+    def __hash__(self) -> int:  # cached: genomes of real curves are long and their prefixes are hashed often
+        return self._hash
 
     def apply(self, state: Polygon) -> Polygon:
         return add_point(state, self.index, self.position)
@@ -238,6 +242,10 @@ class MovePoint(Op):
     def __post_init__(self) -> None:
         object.__setattr__(self, "index", _index(self.index, "move_point index"))
         object.__setattr__(self, "delta", _pair(self.delta, "move_point delta"))
+        object.__setattr__(self, "_hash", hash((2, self.index, self.delta)))
+
+    def __hash__(self) -> int:
+        return self._hash
 
     def apply(self, state: Polygon) -> Polygon:
         return move_point(state, self.index, self.delta)

@@ -102,9 +102,11 @@ class CurveProblem:
         self.hi = np.asarray(self.template.hi, dtype=np.float64)
         self.max_ctrl = config.max_control_points or max(4, self.m)
         self._chord = chord_length_params(self.points)
-        self._states: dict[tuple, curve_ops.Polygon] = {}
+        self._trie: dict = {}
+        self._trie_size = 0
         subsampled = len(self.points) < len(prep.points)
-        limit = config.max_distance * (0.9 if subsampled else 1.0) if config.max_distance else None
+        # The search samples the curve more coarsely than the final check (and maybe fewer points): a margin.
+        limit = config.max_distance * (0.9 if subsampled else 0.97) if config.max_distance else None
         cand = np.searchsorted(prep.search, prep.candidates)
         self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
                                 self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle])
@@ -115,28 +117,30 @@ class CurveProblem:
 
     # --- GA protocol -------------------------------------------------------------------------------
     def _state(self, prefix: tuple) -> curve_ops.Polygon:
-        """The polygon after ``prefix`` with invalid ops skipped (repair semantics), cached by prefix.
+        """The polygon after ``prefix`` with invalid ops skipped (repair semantics), cached in a trie of ops.
 
-        Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent.
+        Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent; the
+        trie makes a look-up linear in the genome's length (long histories of real curves have hundreds of ops).
         """
-        state = self._states.get(prefix)
-        if state is None:
-            if not prefix:
-                return self.template
-            parent = self._state(prefix[:-1])
-            try:
-                state = prefix[-1].apply(parent)
-            except OpError:
-                state = parent
-            if len(self._states) >= 200_000:
-                self._states.clear()
-            self._states[prefix] = state
+        state, children = self.template, self._trie
+        for op in prefix:
+            entry = children.get(op)
+            if entry is None:
+                try:
+                    nxt = op.apply(state)
+                except OpError:
+                    nxt = state
+                entry = children[op] = (nxt, {})
+                self._trie_size += 1
+            state, children = entry
+        if self._trie_size >= 200_000:
+            self._trie, self._trie_size = {}, 0
         return state
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
         p_add = self.config.p_add if poly.n < self.max_ctrl else 0.0
-        p_corner = 0.05 if len(self._sites) else 0.0
+        p_corner = 0.02 if len(self._sites) else 0.0
         return curve_ops.random_op(rng, poly, p_add=p_add, move_scale=self.config.move_scale,
                                    local_add=self.config.local_add, corner_sites=self._sites, p_corner=p_corner)
 
@@ -347,18 +351,23 @@ class CurveProblem:
             corners, counts = (), self.model.allocation((), max(n, self.model.minimum_total(()) or n))
         ctrl, idx = self.model.assemble(corners, counts, refine=True)
         full = self.prepared.points
-        if self.config.max_distance is None or len(full) == self.m:
+        if self.config.max_distance is None:
             return ctrl, idx, corners, counts
         keys = self.model.segments(corners)
+        tree = cKDTree(full)
+        data_corners = self.prepared.search[list(corners)]
         for _ in range(4):
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
-            dist = point_to_spline(spline, full, periodic=self.closed, seeds=2)
-            bad = dist > self.config.max_distance * self.diag
-            if not bad.any():
+            there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
+                                             with_samples=True)
+            limit = self.config.max_distance * self.diag
+            bad = np.flatnonzero(there > limit)
+            bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
+            if not bad.size:
                 break
-            pos = np.searchsorted(self.prepared.search, np.flatnonzero(bad))
+            pos = np.searchsorted(self.prepared.search, bad).clip(0, self.m - 1)
             hit = set()
-            for p in pos:
+            for p in np.unique(pos):
                 for i, (a, b) in enumerate(keys):
                     if (a, b) == (-1, -1) or a <= p <= b or a <= p + self.m <= b:
                         hit.add(i)

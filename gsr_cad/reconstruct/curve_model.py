@@ -59,6 +59,7 @@ class CurveModel:
         self.diag, self.limit, self.lo, self.hi = diag, limit, lo, hi
         self._fits: dict[tuple[Key, int], SegmentFit] = {}
         self._models: dict[Key, np.ndarray] = {}
+        self._densified: set[Key] = set()  # segments fitted to their data model (the limit was out of reach)
         self._need: dict[Key, int] = {}
         self._lower: dict[Key, int] = {}  # proven lower bounds of need()
         self.upto: int | None = None  # the best known total: segments needing more are not searched further
@@ -90,12 +91,18 @@ class CurveModel:
         """No fixed cap below what the data can support: two thirds of the segment's points (nearer to
         interpolation the placement is ill-posed), or the user's cap."""
         size = self.m if key == PERIODIC else key[1] - key[0] + 1
+        if key in self._densified:
+            size *= 4
         cap = max(self.degree + 1, (2 * size) // 3)
         return min(cap, self.config.max_control_points) if self.config.max_control_points else cap
 
     def _fit_points(self, key: Key) -> np.ndarray:
-        """The segment's points, densified along the polyline when it has too few for a well-posed fit."""
+        """The segment's points, densified along the polyline when it has too few for a well-posed fit, or
+        sampled on the data model when the data alone are too coarse for the limit (see :meth:`need`)."""
         pts = self.segment_points(key)
+        if key in self._densified:
+            dense = data_model(pts, key == PERIODIC, per_segment=4)
+            return dense[:-1] if key == PERIODIC else dense
         while len(pts) < 2 * (self.degree + 2) and key != PERIODIC:
             mid = 0.5 * (pts[:-1] + pts[1:])
             pts = np.insert(pts, np.arange(1, len(pts)), mid, axis=0)
@@ -145,7 +152,7 @@ class CurveModel:
         if self.config.fitness != "geometric":
             return quick.fit
         pts = self._fit_points(key)
-        fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=150, lo=self.lo, hi=self.hi,
+        fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=60, lo=self.lo, hi=self.hi,
                         rtol=1e-7, warm_params=quick.fit.params, closed=key == PERIODIC)
         limit = self.limit
 
@@ -169,6 +176,9 @@ class CurveModel:
         if key in self._need:
             return self._need[key]
         lo, top = self.min_count(key), self.max_count(key)
+        bounded = upto is not None
+        if upto is not None:
+            upto = min(upto, top)
         bound = self._lower.get(key, lo)
         if upto is not None and bound > upto:
             return bound
@@ -191,6 +201,14 @@ class CurveModel:
             if self.meets(key, n, limit):
                 break
             bad = n
+            if n >= top and key not in self._densified and not bounded:
+                # Coarse data: between samples the curve cannot follow both the points and their model.
+                # Fit the model's samples instead (they include the points) and search again.
+                self._densified.add(key)
+                for stale in [fk for fk in self._fits if fk[0] == key]:
+                    del self._fits[stale]
+                self._lower.pop(key, None)
+                return self.need(key, limit, upto)
             if n >= top:  # the limit is out of reach: the tried count that came closest
                 tried = [c for (k, c) in self._fits if k == key]
                 best = min(tried, key=lambda c: (self._fits[(key, c)].both_max, c))
