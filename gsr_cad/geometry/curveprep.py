@@ -150,9 +150,13 @@ def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 25.0,
     score = small + big
     out = np.array([int(r[np.argmax(score[r])]) for r in runs], dtype=np.int64)
     angle = np.minimum(big, small)
+    # A corner also shows at the sampling scale: the polyline turns there (at the vertex or a neighbour, by at
+    # least 0.4 of the angle), whereas a round nose sampled coarsely turns a little at every vertex.
+    kink = _vertex_turning(p, closed)
+    local = np.maximum(kink, np.maximum(np.roll(kink, 1), np.roll(kink, -1)))
+    out = out[local[out] >= 0.4 * angle[out]]
     # Isolated kinks of the polyline itself (e.g. both ends of a short trailing edge, closer than h): a vertex
     # turning >= 60 deg with a neighbour turning less than a third of that (a pixel staircase turns at every step).
-    kink = _vertex_turning(p, closed)
     before, after = np.roll(kink, 1), np.roll(kink, -1)
     isolated = (kink >= max(60.0, min_angle)) & (np.minimum(before, after) < kink / 3.0)
     if not closed:

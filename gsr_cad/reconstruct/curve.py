@@ -188,7 +188,7 @@ class CurveProblem:
         counts = self.model.allocation(corners, n)
         if counts is None:  # too few points for this corner set (or the limit): graded by the shortfall
             low = self.model.minimum_total(corners)
-            return 1e15 if low is None else 1e12 * (1.0 + low - n)
+            return 1e15 if low is None else 1e12 * (1.0 + abs(low - n))
         rms, both, excess = self.model.errors(corners, counts)
         grow = math.exp(2.0 * n * math.log(self.m) / self.m)
         if self.limit is None:
@@ -232,13 +232,13 @@ class CurveProblem:
         return [self.local_search(())] if self.config.polish else []
 
     def _valid(self, corners: tuple[int, ...]) -> tuple[int, ...]:
-        """Drop corners closer than two search points to the previous kept one (or to the ends)."""
+        """Drop repeated corners (and, on open curves, corners on the end points)."""
         kept: list[int] = []
         for c in sorted(corners):
-            if (kept and c - kept[-1] < 2) or (not self.closed and (c < 2 or c > self.m - 3)):
+            if (kept and c - kept[-1] < 1) or (not self.closed and (c < 1 or c > self.m - 2)):
                 continue
             kept.append(c)
-        if self.closed and len(kept) > 1 and kept[0] + self.m - kept[-1] < 2:
+        if self.closed and len(kept) > 1 and kept[0] + self.m - kept[-1] < 1:
             kept.pop()
         return tuple(kept)
 
@@ -355,7 +355,7 @@ class CurveProblem:
             return ctrl, idx, corners, counts
         keys = self.model.segments(corners)
         tree = cKDTree(full)
-        data_corners = self.prepared.search[list(corners)]
+        data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
         for _ in range(4):
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
@@ -460,10 +460,9 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     best = tuple(run.best_genome)
     corners: tuple[int, ...] = ()
     template = problem.template
-    data_corners = None
+    data_corners = problem.prepared.candidates if config.polish else None
     if config.polish:
-        fitted, corners, search_corners, _ = problem.final(best)
-        data_corners = problem.prepared.search[list(search_corners)]
+        fitted, corners, _, _ = problem.final(best)
         template = problem.result_template(fitted)
         final = problem.history(fitted, corners, template)
     else:
