@@ -356,10 +356,14 @@ class CurveProblem:
         keys = self.model.segments(corners)
         tree = cKDTree(full)
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
+        best = None
         for _ in range(4):
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
                                              with_samples=True)
+            worst = max(float(there.max()), float(back.max()))
+            if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
+                best = (worst, ctrl, idx, counts)
             limit = self.config.max_distance * self.diag
             bad = np.flatnonzero(there > limit)
             bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
@@ -377,6 +381,13 @@ class CurveProblem:
                 break
             counts = grown
             ctrl, idx = self.model.assemble(corners, counts, refine=True)
+        else:
+            spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
+            there, back = two_sided(spline, full, self.closed, per_span=32, corners=data_corners)
+            if max(float(there.max()), float(back.max())) < best[0]:
+                best = (max(float(there.max()), float(back.max())), ctrl, idx, counts)
+        if max(float(there.max()), float(back.max())) > best[0]:
+            _, ctrl, idx, counts = best
         return ctrl, idx, corners, counts
 
 
