@@ -102,8 +102,8 @@ bpy.ops.render.render(write_still=True)
 def _openscad_png(scad: Path, png: Path, top: bool) -> None:
     """OpenSCAD's own preview image of ``scad`` (a virtual display via xvfb-run when there is none)."""
     view = ["--camera", "0,0,0,0,0,0,0", "--projection", "ortho"] if top else ["--camera", "0,0,0,55,0,30,0"]
-    cmd = [hosts.find_host("openscad"), "-o", str(png), "--imgsize", "640,480", "--viewall", "--autocenter",
-           "--colorscheme", "Tomorrow", *view, str(scad)]
+    cmd = [hosts.find_host("openscad"), "-D", 'part="both"', "-o", str(png), "--imgsize", "640,480", "--viewall",
+           "--autocenter", "--colorscheme", "Tomorrow", *view, str(scad)]
     if not os.environ.get("DISPLAY") and shutil.which("xvfb-run"):
         cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", *cmd]
     subprocess.run(cmd, check=True, capture_output=True, timeout=300)

@@ -16,8 +16,9 @@ import numpy as np
 from gsr_cad.atomic import atomic_path
 from gsr_cad.errors import ExportError
 
-from .base import (EXACT_TOL, Check, Exporter, curve_checks, curve_spline, expect_equal, failed, measured,
+from .base import (EXACT_TOL, Check, Exporter, curve_checks, expect_equal, failed, measured,
                    point_deviation, skipped)
+from .model import curve_model
 
 CURVE_LAYER = "GSR_CURVE"
 POLYGON_LAYER = "GSR_CONTROL_POLYGON"
@@ -41,7 +42,7 @@ class DxfExporter(Exporter):
     def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         import ezdxf
 
-        spline = curve_spline(result)
+        spline = curve_model(result).spline
         doc = ezdxf.new("R2010", setup=["linetypes"])
         doc.units = ezdxf.units.MM
         doc.layers.add(CURVE_LAYER, color=1)
@@ -66,7 +67,7 @@ class DxfExporter(Exporter):
             return [skipped(path, self.host, "read", reason)]
         import ezdxf
 
-        spline = curve_spline(result)
+        spline = curve_model(result).spline
         try:
             doc = ezdxf.readfile(path)
         except (OSError, ezdxf.DXFError) as exc:

@@ -1,7 +1,8 @@
 """Finding and running the CAD hosts (Blender, FreeCAD, OpenSCAD) as independent judges.
 
-Each runner raises :class:`~gsr_cad.errors.ExportError` with one line when the host is missing, times
-out or reports failure, so the CLI can print it and tests can tell "host absent" from "check failed".
+Runners for Blender, FreeCAD, OpenSCAD and the CadQuery venv. Each raises
+:class:`~gsr_cad.errors.ExportError` with one line when the host is missing, times out or reports failure,
+so the CLI can print it and tests can tell "host absent" from "check failed".
 """
 
 from __future__ import annotations
@@ -83,3 +84,26 @@ def run_openscad(scad: str | Path, out: str | Path, timeout: float = 600,
     extra = [arg for name, value in (defines or {}).items() for arg in ("-D", f"{name}={value}")]
     extra += list(options)
     return run([exe, *extra, "-o", out, scad], "openscad", timeout)
+
+
+NO_CADQUERY = "no CadQuery environment (run scripts/cadquery-venv.sh or set GSR_CADQUERY_PYTHON)"
+
+
+def cadquery_python() -> Path | None:
+    """The interpreter of the CadQuery venv (``GSR_CADQUERY_PYTHON`` or ``.venv-cadquery``), or None.
+
+    CadQuery and build123d ship different OCP builds that must not share a Python environment."""
+    override = os.environ.get("GSR_CADQUERY_PYTHON")
+    candidates = [Path(override)] if override else [
+        Path(__file__).resolve().parents[1] / ".venv-cadquery" / "bin" / "python",
+        Path.cwd() / ".venv-cadquery" / "bin" / "python",
+    ]
+    return next((p for p in candidates if p.is_file() and os.access(p, os.X_OK)), None)
+
+
+def run_cadquery(script: str | Path, args: Sequence[str] = (), timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run a script with the CadQuery interpreter; ExportError when it is missing, fails or times out."""
+    python = cadquery_python()
+    if python is None:
+        raise ExportError(NO_CADQUERY)
+    return run([python, script, *args], "cadquery", timeout)

@@ -1,18 +1,23 @@
-"""OpenSCAD export: the curve as a 2-D stroke of configurable width, and the control polygon.
+"""OpenSCAD export (format "scad"): a curve as a 2-D stroke, a surface as a polyhedron of its limit mesh.
 
-OpenSCAD has no spline primitive, so the ``.scad`` file carries the curve sampled finely enough that the
+The ``.scad`` files are :mod:`~gsr_cad.exporters.hostside` ``curve.scad`` and ``surface.scad`` with their
+data lines filled by the literal encoder (numbers and vectors of numbers only; comment lines reduced to a
+safe character set, so nothing can leave a comment). By default each renders the part: the curve's stroke
+or the limit surface; the control polygon or cage is a module drawn only when asked
+(``-D 'part="both"'``, ``"control_polygon"``, ``"cage"``, ``"cage_solid"``).
+
+Curves: OpenSCAD has no spline primitive, so the file carries the curve sampled finely enough that the
 chords stay within 1 % of the default stroke width of it; module ``gsr_curve(width)`` offsets every chord
 by ``width / 2`` to both sides and joins neighbours with bevels, a union that stays right where the curve
-crosses itself (one offset outline would not). ``gsr_control_polygon(width)`` draws the control polygon as
-hulls of circle pairs. Top-level variables pick what is drawn: ``width``, ``part`` ("both", "curve",
-"control_polygon") and ``height`` (> 0 extrudes the drawing for STL). OpenSCAD snaps 2-D geometry to a
-1/65536 grid, so the modules draw at ``gsr_unit`` (a power of ten making the diagonal >= 1000) times the
-size and scale the result back; it still writes 6 significant digits, so coordinates far from the origin
-relative to the curve's size lose precision in its STL/DXF/SVG output.
+crosses itself (one offset outline would not). ``height`` > 0 extrudes the drawing for STL. OpenSCAD snaps
+2-D geometry to a 1/65536 grid, so the modules draw at ``gsr_unit`` (a power of ten making the diagonal
+>= 1000) times the size and scale the result back; it still writes 6 significant digits, so coordinates far
+from the origin relative to the curve's size lose precision in its STL/DXF/SVG output.
 
 Validation renders ``part="curve"`` and ``part="control_polygon"`` extruded to STL with ``openscad`` and
 checks that the solids are non-empty, that every vertex lies within half the stroke width of our exact
-curve (or control polygon), and that our curve (control points) lies inside the rendered footprint.
+curve (or control polygon), and that our curve (control points) lies inside the rendered footprint; for
+surfaces, the limit mesh and the cage solid.
 """
 
 from __future__ import annotations
@@ -24,15 +29,14 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from gsr_cad.atomic import write_text
 from gsr_cad.errors import ExportError
 from gsr_cad.geometry import distance
 from gsr_cad.geometry.polymesh import PolyMesh
 
 from . import hosts
-from .base import (Check, CurveSpline, Exporter, curve_spline, expect_equal, failed, measured, num, scratch_dir,
-                   skipped)
-from .blender import SurfaceModel, same_mesh, surface_model, triangle_faces
+from .base import Check, Exporter, expect_equal, failed, measured, num, scratch_dir, skipped
+from .encode import fill_scad
+from .model import CurveSpline, SurfaceModel, curve_model, same_mesh, surface_model, triangle_faces
 
 WIDTH_FRACTION = 0.01
 SAG_FRACTION = 0.01
@@ -80,66 +84,6 @@ def distinct(points: np.ndarray) -> np.ndarray:
     return p
 
 
-def _rows(a: np.ndarray) -> str:
-    return ",\n  ".join(f"[{num(x)}, {num(y)}]" for x, y in a)
-
-
-_SCAD = """// {title}
-// Modules: gsr_curve(width) = the curve as a 2-D stroke, gsr_control_polygon(width) = its control polygon.
-// Customize: openscad -D width={width} -D 'part="curve"' -D height=2 -o out.stl {filename}
-
-width = {width};  // stroke width of the curve
-part = "both";  // [both, curve, control_polygon]
-height = 0;  // > 0: extrude the drawing to this height (for STL)
-
-// {n} samples of the {scheme} curve (degree {degree})
-gsr_curve_points = [
-  {points}
-];
-gsr_control_points = [
-  {poles}
-];
-
-function gsr_normal(a, b) = let (d = b - a) [-d[1], d[0]] / norm(d);
-
-// OpenSCAD snaps 2-D geometry to a 1/65536 grid, so the modules draw gsr_unit times larger and scale back.
-gsr_unit = {unit};
-
-// The stroke: one rectangle per chord (offset by width / 2 on both sides) and bevel joins between them;
-// their union is right even where the curve crosses itself.
-module gsr_curve(width = width) {{
-  p = gsr_unit * gsr_curve_points;
-  h = gsr_unit * width / 2;
-  scale(1 / gsr_unit) union() {{
-    for (i = [0:len(p) - 2]) let (n = h * gsr_normal(p[i], p[i + 1]))
-      polygon([p[i] + n, p[i + 1] + n, p[i + 1] - n, p[i] - n]);
-    for (i = [1:len(p) - 2]) let (a = h * gsr_normal(p[i - 1], p[i]), b = h * gsr_normal(p[i], p[i + 1]))
-      if (norm(a - b) > 1e-9 * h) {{
-        polygon([p[i], p[i] + a, p[i] + b]);
-        polygon([p[i], p[i] - b, p[i] - a]);
-      }}
-  }}
-}}
-
-module gsr_control_polygon(width = width / 3) {{
-  p = gsr_unit * gsr_control_points;
-  scale(1 / gsr_unit) for (i = [0:len(p) - 2])
-    hull() {{
-      translate(p[i]) circle(d = gsr_unit * width, $fn = 16);
-      translate(p[i + 1]) circle(d = gsr_unit * width, $fn = 16);
-    }}
-}}
-
-module gsr_drawing() {{
-  if (part != "control_polygon") color("red") gsr_curve();
-  if (part != "curve") color("gray") gsr_control_polygon();
-}}
-
-if (height > 0) linear_extrude(height = height) gsr_drawing();
-else gsr_drawing();
-"""
-
-
 def footprint_distance(points: np.ndarray, tri: np.ndarray, chunk: int = 256) -> np.ndarray:
     """Distance of each 2-D point to the union of triangles ``(t, 3, 2)``: 0 inside, else to the nearest edge."""
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
@@ -177,21 +121,21 @@ class OpenscadExporter(Exporter):
     suffixes = (".scad",)
     host = "openscad"
 
-    def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
-        spline = curve_spline(result)
+    def render_curve(self, result: Any, stem: str) -> dict[str, str]:
+        spline = curve_model(result).spline
         width = stroke_width(spline)
         points = distinct(stroke_samples(spline, width))
-        filename = self.filename(stem)
-        text = _SCAD.format(
-            title=f"{filename}: a gsr_cad curve with {len(spline.poles)} control points (OpenSCAD 2-D)",
-            width=num(width), filename=filename, n=len(points), scheme=result.config.get("scheme", "bspline"),
-            degree=spline.degree, points=_rows(points), poles=_rows(spline.poles), unit=drawing_unit(spline))
-        return [write_text(out_dir / filename, text)]
+        title = (f"{len(spline.poles)} control points, {result.scheme} curve of degree {spline.degree}, "
+                 f"{len(points)} samples")
+        text = fill_scad("curve.scad", {"width": float(width), "gsr_curve_points": points.tolist(),
+                                        "gsr_control_points": spline.poles.tolist(),
+                                        "gsr_unit": int(drawing_unit(spline))}, {"title": [title]})
+        return {self.filename(stem): text}
 
     def validate_curve(self, path: Path, result: Any) -> list[Check]:
         if reason := hosts.missing("openscad"):
             return [skipped(path, self.host, "render", reason)]
-        spline = curve_spline(result)
+        spline = curve_model(result).spline
         width = stroke_width(spline)
         checks: list[Check] = []
         with scratch_dir() as tmp:
@@ -228,9 +172,8 @@ class OpenscadExporter(Exporter):
                      f"{len(inner)} points; deviation = farthest outside"),
         ]
 
-    def export_surface(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
-        model = surface_model(result)
-        return [write_text(out_dir / self.filename(stem), surface_scad(model, self.filename(stem)))]
+    def render_surface(self, result: Any, stem: str) -> dict[str, str]:
+        return {self.filename(stem): surface_scad(surface_model(result))}
 
     def validate_surface(self, path: Path, result: Any) -> list[Check]:
         if reason := hosts.missing("openscad"):
@@ -295,90 +238,20 @@ def _signed_volume(v: np.ndarray, tri: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", v[tri[:, 0]], np.cross(v[tri[:, 1]], v[tri[:, 2]])).sum() / 6.0)
 
 
-def _vec3(p: np.ndarray) -> str:
-    return "[" + ", ".join(num(x) for x in p) + "]"
-
-
-def _index_rows(rows: Any, per_line: int = 8) -> str:
-    items = ["[" + ", ".join(str(int(i)) for i in r) + "]" for r in rows]
-    return ",\n  ".join(", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line))
-
-
-_SURFACE_SCAD = """// {title}
-// Modules: gsr_limit_surface() = the Catmull-Clark limit surface ({levels} levels, vertices on the limit) as a
-// polyhedron; gsr_control_cage(width) = the edges of the control mesh; gsr_control_solid() = the control mesh
-// as a polyhedron. The history that built the control mesh ({n_ops} ops on the template):
-{listing}
-// Customize: openscad -D 'part="surface"' -o out.stl {filename}
-
-part = "both";  // [both, surface, cage, cage_solid]
-width = {width};  // thickness of the cage's edges
-place = true;  // false: draw the model about the origin (coordinates below are relative to gsr_centre)
-
-gsr_centre = {centre};
-
-// limit mesh: {n_points} points, {n_tri} triangles (clockwise seen from outside, as OpenSCAD wants)
-gsr_limit_points = [
-  {points}
-];
-gsr_limit_faces = [
-  {faces}
-];
-
-// control mesh: {n_cage} vertices, {n_cage_faces} faces (clockwise seen from outside), {n_edges} edges
-gsr_cage_points = [
-  {cage_points}
-];
-gsr_cage_faces = [
-  {cage_faces}
-];
-gsr_cage_edges = [
-  {cage_edges}
-];
-
-module gsr_limit_surface() {{
-  polyhedron(points = gsr_limit_points, faces = gsr_limit_faces, convexity = 10);
-}}
-
-module gsr_control_solid() {{
-  polyhedron(points = gsr_cage_points, faces = gsr_cage_faces, convexity = 10);
-}}
-
-module gsr_control_cage(width = width) {{
-  for (e = gsr_cage_edges)
-    hull() {{
-      translate(gsr_cage_points[e[0]]) sphere(d = width, $fn = 8);
-      translate(gsr_cage_points[e[1]]) sphere(d = width, $fn = 8);
-    }}
-}}
-
-module gsr_model() {{
-  if (part == "both" || part == "surface") color("gold") gsr_limit_surface();
-  if (part == "both" || part == "cage") color("dimgray") gsr_control_cage();
-  if (part == "cage_solid") gsr_control_solid();
-}}
-
-if (place) translate(gsr_centre) gsr_model();
-else gsr_model();
-"""
-
-
-def surface_scad(model: SurfaceModel, filename: str) -> str:
+def surface_scad(model: SurfaceModel) -> str:
     """The ``.scad`` text of a surface: limit-mesh polyhedron, control cage and history listing."""
     centre = scad_centre(model)
     limit, cage = model.limit, model.control
-    tris = [t[::-1] for t in triangle_faces(limit)]
-    cage_faces = [f[::-1] for f in cage.faces]
+    tris = [list(t[::-1]) for t in triangle_faces(limit)]
     edges = sorted({(min(u, v), max(u, v)) for f in cage.faces for u, v in zip(f, f[1:] + f[:1])})
-    listing = "\n".join(f"//   {label}" for label in model.labels)
-    return _SURFACE_SCAD.format(
-        title=f"{filename}: a gsr_cad Catmull-Clark surface, {cage.n_faces} control faces (OpenSCAD 3-D)",
-        levels=model.levels, n_ops=len(model.labels) - 1, listing=listing, filename=filename,
-        width=num(CAGE_WIDTH_FRACTION * model.diagonal), centre=_vec3(centre), n_points=limit.n_vertices,
-        n_tri=len(tris), points=",\n  ".join(_vec3(p) for p in limit.vertices - centre), faces=_index_rows(tris),
-        n_cage=cage.n_vertices, n_cage_faces=cage.n_faces, n_edges=len(edges),
-        cage_points=",\n  ".join(_vec3(p) for p in cage.vertices - centre), cage_faces=_index_rows(cage_faces),
-        cage_edges=_index_rows(edges))
+    title = (f"{cage.n_faces} control faces, {model.levels} subdivision levels, {limit.n_vertices} limit points, "
+             f"{len(tris)} triangles, {len(model.labels) - 1} ops")
+    return fill_scad("surface.scad", {
+        "width": float(CAGE_WIDTH_FRACTION * model.diagonal), "gsr_centre": centre.tolist(),
+        "gsr_limit_points": (limit.vertices - centre).tolist(), "gsr_limit_faces": tris,
+        "gsr_cage_points": (cage.vertices - centre).tolist(), "gsr_cage_faces": [list(f[::-1]) for f in cage.faces],
+        "gsr_cage_edges": [list(e) for e in edges]},
+        {"title": [title], "history": [f"  {label}" for label in model.labels]})
 
 
 def _load_stl(path: Path, allow_empty: bool = False) -> Any:

@@ -21,8 +21,9 @@ import numpy as np
 from gsr_cad.atomic import write_text
 from gsr_cad.errors import ExportError
 
-from .base import (EXACT_TOL, SAMPLE_TOL, Check, CurveSpline, Exporter, curve_spline, expect_equal, failed,
+from .base import (EXACT_TOL, SAMPLE_TOL, Check, Exporter, expect_equal, failed,
                    measured, num, point_deviation, skipped)
+from .model import CurveSpline, curve_model
 
 PAGE_PX = 800.0
 MARGIN = 0.05
@@ -79,13 +80,13 @@ class SvgExporter(Exporter):
     host = "svgelements"
 
     def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
-        spline = curve_spline(result)
+        spline = curve_model(result).spline
         view = view_of(spline)
         d = spline.diagonal
         page_w, page_h = view.page
         points = " ".join(f"{num(x)},{num(y)}" for x, y in spline.poles)
         dots = "\n".join(f'    <circle cx="{num(x)}" cy="{num(y)}" r="{num(0.004 * d)}"/>' for x, y in spline.poles)
-        scheme = escape(str(result.config.get("scheme", "bspline")))
+        scheme = escape(result.scheme)
         svg = f"""<?xml version="1.0" encoding="UTF-8"?>
 <svg xmlns="http://www.w3.org/2000/svg" version="1.1" width="{num(page_w)}" height="{num(page_h)}"
      viewBox="{num(view.x0)} {num(-view.y1)} {num(view.width)} {num(view.height)}">
@@ -107,7 +108,7 @@ class SvgExporter(Exporter):
             return [skipped(path, self.host, "read", "svgelements is not installed (it comes with build123d)")]
         import svgelements as se
 
-        spline = curve_spline(result)
+        spline = curve_model(result).spline
         view = view_of(spline)
         try:
             svg = se.SVG.parse(str(path), reify=False)

@@ -1,7 +1,8 @@
 """gsr_cad: measured points -> editable CAD (control polygon / control mesh and its modelling history).
 
-The public API is :func:`reconstruct_curve`, :func:`reconstruct_surface` and :class:`Result` (loaded on first
-use, so ``import gsr_cad.errors`` stays light); errors are :class:`gsr_cad.errors.GsrError` subclasses.
+The public API is :func:`reconstruct_curve`, :func:`reconstruct_surface`, :class:`Result` (its typed forms
+:class:`CurveResult` and :class:`SurfaceResult`), :func:`export` and :func:`validate` (loaded on first use,
+so ``import gsr_cad.errors`` stays light); errors are :class:`gsr_cad.errors.GsrError` subclasses.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from .errors import ConfigError, ExportError, GsrError, InputError, OpError, Top
 
 __version__ = "0.1.0"
 
-_API = ("CurveConfig", "SurfaceConfig", "reconstruct_curve", "reconstruct_surface", "Result", "load_mesh")
+_API = ("CurveConfig", "SurfaceConfig", "reconstruct_curve", "reconstruct_surface", "Result", "CurveResult",
+        "SurfaceResult", "load_mesh", "export", "validate")
 __all__ = [*_API, "GsrError", "InputError", "ConfigError", "TopologyError", "OpError", "ExportError"]
 
 

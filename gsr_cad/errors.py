@@ -26,3 +26,7 @@ class OpError(GsrError):
 
 class ExportError(GsrError):
     """An export or host round trip that failed (unwritable directory, missing host, bad result file)."""
+
+
+class GsrWarning(UserWarning):
+    """Something repaired or ignored on the user's behalf; the CLI shows it as one ``warning: ...`` line."""

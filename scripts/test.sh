@@ -3,6 +3,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-hosts.sh
+if ! command -v chromium >/dev/null && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+  echo "Chromium: installing from Debian packages (the report.html browser tests use it)"
+  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; } >/tmp/gsr-chromium.log 2>&1 \
+    || echo "Chromium: apt-get failed (see /tmp/gsr-chromium.log); the report.html browser tests will skip"
+fi
 bash scripts/venv.sh "dev,cad,dask"
 bash scripts/cadquery-venv.sh || echo "CadQuery venv: install failed; the CadQuery round-trip tests will skip"
 exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" --dist loadgroup "$@"

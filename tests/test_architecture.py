@@ -86,3 +86,53 @@ def test_exporters_import_only_gsr_cad_downward():
         for name in _imports(path):
             assert not _reaches_cli(name), f"{path.name} imports the CLI ({name})"
             assert name.split(".")[0] != "exporters", f"{path.name} imports a top-level exporters ({name})"
+
+
+SHARED = {"base", "model", "checks", "hosts", "encode", "hostside"}
+"""The floor every exporter stands on; exporters are siblings and never import each other."""
+
+
+def _exporter_modules() -> set[str]:
+    import tomllib
+
+    eps = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]["entry-points"]
+    return {value.split(":")[0].rsplit(".", 1)[1] for value in eps["gsr_cad.exporters"].values()}
+
+
+def _exporter_imports(path: Path) -> set[str]:
+    """The gsr_cad.exporters modules ``path`` imports (first component after the package)."""
+    out = set()
+    for name in _imports(path):
+        head = name.split(".")
+        if head[:2] == ["gsr_cad", "exporters"] and len(head) > 2:
+            out.add(head[2])
+    return out - {"__init__"}
+
+
+def test_exporters_are_siblings_over_one_shared_floor():
+    exporters = _exporter_modules()
+    assert {"step", "dxf", "svg", "freecad", "openscad", "cadquery", "blender"} <= exporters
+    assert not exporters & SHARED
+    graph = {p.stem: _exporter_imports(p) for p in (REPO / "exporters").glob("*.py") if p.stem != "__init__"}
+    assert set(graph) == exporters | (SHARED - {"hostside"}), "every exporter module is an exporter or shared"
+    for name in exporters:
+        siblings = graph[name] & exporters
+        assert not siblings, f"exporter {name} imports exporter(s) {sorted(siblings)}"
+        assert graph[name] <= SHARED
+    for name in SHARED - {"hostside"}:
+        assert not graph[name] & exporters, f"shared module {name} imports an exporter"
+
+
+def test_hostside_code_imports_nothing_of_gsr_cad():
+    """Host scripts run inside Blender, FreeCAD or CadQuery, where gsr_cad is not installed."""
+    for path in (REPO / "exporters" / "hostside").glob("*.py"):
+        for name in _imports(path):
+            assert name.split(".")[0] != "gsr_cad" or path.name == "__init__.py", f"{path.name} imports {name}"
+
+
+def test_the_architecture_scan_sees_an_exporter_importing_a_sibling(tmp_path):
+    (tmp_path / "exporters").mkdir()
+    bad = tmp_path / "exporters" / "step.py"
+    bad.write_text("from .freecad import freecad_read\nfrom . import model\nimport gsr_cad.exporters.blender\n")
+    assert {"freecad", "model", "blender"} <= {n.split(".")[2] for n in _imports(bad, tmp_path)
+                                               if n.startswith("gsr_cad.exporters.")}

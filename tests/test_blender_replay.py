@@ -4,6 +4,7 @@ Catmull-Clark evaluator. Every script runs in ONE Blender process (tests/blender
 
 from __future__ import annotations
 
+import ast
 import collections
 import json
 from pathlib import Path
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+import gsr_cad.exporters
 from gsr_cad import genome as genome_mod
 from gsr_cad.errors import ConfigError, ExportError, OpError
 from gsr_cad.exporters.blender import write_blender_script
@@ -164,14 +166,19 @@ def test_modifier_matches_catmull_clark(replayed):
 
 @pytest.mark.blender
 @pytest.mark.xdist_group("blender")  # one Blender run under --dist loadgroup
-def test_scripts_leave_one_object_with_the_modifier_settings_asked_for(replayed):
+def test_scripts_leave_one_modified_object_and_one_hidden_object_per_step(replayed):
     cases, results, _ = replayed
     for case, result in zip(cases, results):
-        (obj,) = result["objects"]
+        shown = [o for o in result["objects"] if not o["hidden"]]
+        steps = [o for o in result["objects"] if o["hidden"]]
+        (obj,) = shown
         assert (obj["vertices"], obj["faces"]) == (case["mesh"].n_vertices, case["mesh"].n_faces)
         assert obj["in_scene"]
         assert obj["modifiers"] == [{"type": "SUBSURF", "levels": case["levels"], "render_levels": case["levels"],
                                      "use_limit_surface": case["limit"], "boundary_smooth": "ALL"}]
+        assert len(steps) == len(case["ops"]) + 1 and not any(o["modifiers"] for o in steps)
+        assert all(o["collections"] == [f"{obj['name']} history"] for o in steps)
+        assert (steps[-1]["vertices"], steps[-1]["faces"]) == (obj["vertices"], obj["faces"])
 
 
 @pytest.mark.blender
@@ -180,7 +187,7 @@ def test_script_without_arguments_just_builds_the_object(replayed):
     cases, results, _ = replayed
     gui = results[-1]
     assert gui["error"] is None
-    (obj,) = gui["objects"]
+    (obj,) = [o for o in gui["objects"] if not o["hidden"]]
     assert obj["name"] == "gui" and obj["in_scene"]
     assert (obj["vertices"], obj["faces"]) == (cases[0]["mesh"].n_vertices, cases[0]["mesh"].n_faces)
     assert obj["modifiers"][0]["levels"] == 3 and obj["modifiers"][0]["use_limit_surface"] is False
@@ -188,18 +195,24 @@ def test_script_without_arguments_just_builds_the_object(replayed):
 
 # --- the script text (no Blender needed) ---------------------------------------------------------------
 
-def test_script_is_readable_python_with_one_block_per_op(tmp_path):
+def test_script_is_the_hostside_module_with_one_step_per_op(tmp_path):
     ops = (Extrude(5, 0.42), Bevel(3, 0.1), Inset(0, 0.1), EdgeLoop(2), Scale(1.5))
     path = write_blender_script(ops, unit_cube(), tmp_path / "out" / "demo_blender.py", levels=3,
                                 use_limit_surface=False, title="demo")
     text = path.read_text(encoding="utf-8")
-    compile(text, str(path), "exec")
-    for line in ("# 01 extrude face 5 by 0.42", "# 02 bevel edge 3 by 0.1", "# 03 inset face 0 by 0.1",
-                 "# 04 edge loop through edge 2", "# 05 scale by 1.5", "LEVELS = 3",
-                 "USE_LIMIT_SURFACE = False", "use_keep_orig=False", "offset_type=\"OFFSET\"",
-                 "subdivide_edgering", "inset_individual", "bm.normal_update()"):
-        assert line in text, line
-    assert "translate_vertex(" not in text  # only the helpers the genome uses
+    module = ast.parse(text)
+    (data,) = [n for n in module.body if isinstance(n, ast.Assign) and n.targets[0].id == "DATA"]
+    data = ast.literal_eval(data.value)
+    assert [s["label"] for s in data["steps"]] == ["01 extrude face 5 by 0.42", "02 bevel edge 3 by 0.1",
+                                                   "03 inset face 0 by 0.1", "04 edge loop through edge 2",
+                                                   "05 scale by 1.5"]
+    assert data["steps"][0]["op"] == {"op": "extrude", "face": 5, "distance": 0.42}
+    before_scale = genome_mod.replay(unit_cube(), ops[:4])
+    assert data["steps"][4]["op"]["pivot"] == before_scale.bbox.mean(axis=0).tolist()
+    assert (data["levels"], data["use_limit_surface"], data["name"]) == (3, False, "demo")
+    host = (Path(gsr_cad.exporters.__file__).parent / "hostside" / "blender_mesh.py").read_text(encoding="utf-8")
+    assert text.replace(ast.get_source_segment(text, [n for n in module.body if isinstance(n, ast.Assign)
+                                                     and n.targets[0].id == "DATA"][0]), "DATA = {}") == host
     assert list(tmp_path.joinpath("out").iterdir()) == [path]  # no temp file left behind
 
 

@@ -143,7 +143,7 @@ def test_cli_space_curve_and_exit_code_3(gsr, tmp_path):
               "--formats", "none", "--quiet", "--initial-population", "120", "--population", "24",
               "--generations", "10")
     assert run.code == 3
-    assert "warning: max distance" in run.err and "tolerance missed" in run.out
+    assert "warning: tolerance missed" in run.err and "MISSED" in run.out
     assert json.loads((tmp_path / "miss" / "result.json").read_text())["metrics"]["tolerance_met"] is False
     run = gsr("curve", ring, "-o", tmp_path / "open", "--open", "--formats", "none", "--quiet",
               "--initial-population", "120", "--population", "24", "--generations", "10")

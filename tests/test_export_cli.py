@@ -29,7 +29,7 @@ def test_replay_writes_exports_csv_and_result(gsr, saved, tmp_path):
     run = gsr("replay", source, "-o", out, "--formats", FAST)
     assert run.code == 0, run.err
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["control_points.csv", "curve.dxf", "curve.step", "curve.svg", "result.json"]
+    assert names == ["control_points.csv", "curve.dxf", "curve.step", "curve.svg", "exports.json", "result.json"]
     assert (out / "result.json").read_bytes() == source.read_bytes()
     csv = np.loadtxt(out / "control_points.csv", delimiter=",", skiprows=1)
     np.testing.assert_array_equal(csv, result.control_points)

@@ -17,9 +17,11 @@ from test_export_results import hand_result, polygon_result, scipy_curve
 
 from gsr_cad.cli import formats
 from gsr_cad.errors import ExportError, InputError
-from gsr_cad.exporters.base import curve_spline, num
+from gsr_cad.exporters.base import num
+from gsr_cad.exporters.model import curve_spline
 from gsr_cad.exporters.dxf import DxfExporter
-from gsr_cad.exporters.step import StepExporter, read_step_curves
+from gsr_cad.exporters.checks import read_step_curves
+from gsr_cad.exporters.step import StepExporter
 from gsr_cad.exporters.svg import SvgExporter
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.reconstruct.result import Result
@@ -183,18 +185,23 @@ def test_registry_lists_the_curve_formats():
     assert formats.check_formats(["svg", "dxf", "svg"], "curve") == ["svg", "dxf"]
 
 
-def test_export_all_writes_every_format_or_none(tmp_path):
+def test_export_all_writes_every_format_or_none(tmp_path, monkeypatch):
     result = hand_result(seed=8)
     written = formats.export_all(result, tmp_path / "ok", ["step", "dxf", "svg", "fcmacro"], stem="arc")
     assert sorted(p.name for p in written) == ["arc.FCMacro", "arc.dxf", "arc.step", "arc.svg"]
-    assert sorted(p.name for p in (tmp_path / "ok").iterdir()) == sorted(p.name for p in written)
-    # A hand-edited result whose genome no longer rebuilds its control points: the macro exporter
-    # refuses it after STEP and DXF were produced; nothing may reach the output directory.
-    edited = Result(**{**result.__dict__, "control_points": result.control_points * 1.01})
-    out = tmp_path / "bad"
-    with pytest.raises(ExportError, match="does not rebuild"):
-        formats.export_all(edited, out, ["step", "dxf", "fcmacro"])
-    assert list(out.iterdir()) == []
+    assert sorted(p.name for p in (tmp_path / "ok").iterdir()) == sorted([formats.MANIFEST] + [p.name for p in written])
+    # The macro exporter fails after STEP and DXF were produced: nothing new reaches the output
+    # directory, and the previous run's exports stay.
+    before = {p.name: p.read_bytes() for p in (tmp_path / "ok").iterdir()}
+    macro = formats.registry()["fcmacro"].exporter
+
+    def broken(*_):
+        raise ExportError("the macro writer broke")
+
+    monkeypatch.setattr(macro, "render_curve", broken)
+    with pytest.raises(ExportError, match="broke"):
+        formats.export_all(hand_result(seed=9), tmp_path / "ok", ["step", "dxf", "fcmacro"], stem="arc")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "ok").iterdir()} == before
 
 
 def test_export_all_skips_curve_formats_for_surfaces(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import re
@@ -14,8 +15,11 @@ from test_export_results import hand_result, polygon_result, reconstructed_resul
 
 from gsr_cad.errors import ExportError
 from gsr_cad.exporters import hosts
-from gsr_cad.exporters.base import curve_spline, num
-from gsr_cad.exporters.cadquery import CadqueryExporter, cadquery_python
+from gsr_cad.exporters.base import num
+from gsr_cad.exporters.model import curve_spline
+from gsr_cad.exporters.cadquery import CadqueryExporter
+from gsr_cad.exporters.encode import fill_python
+from gsr_cad.exporters.hosts import cadquery_python
 from gsr_cad.exporters.freecad import FreecadMacroExporter
 from gsr_cad.exporters.openscad import OpenscadExporter, stroke_width
 from gsr_cad.geometry import distance
@@ -80,20 +84,28 @@ def test_freecad_macro_errors_exit_1_and_edits_fail_validation(tmp_path):
     exporter = FreecadMacroExporter()
     (path,) = exporter.export(result, tmp_path, "curve")
     text = path.read_text()
-    # A hand-edited pole: the macro still runs, validation must catch the moved pole and curve.
-    pole = result.control_points[2]
-    poles_line = re.search(r"^POLES = .*$", text, re.M)
-    edited = poles_line.group(0).replace(num(pole[1]), repr(float(pole[1]) + 0.1))
-    path.write_text(text.replace(poles_line.group(0), edited))
+    # A hand-edited op parameter: the macro still runs and replays it, validation catches the moved points.
+    data = data_of(text)
+    last = data["steps"][-1]["op"]
+    field = "position" if last["op"] == "add_point" else "delta"
+    last[field][1] += 0.1
+    path.write_text(fill_python("freecad_macro.py", data))
     got = statuses(exporter.validate(path, result))
-    assert got["freecad:poles"] == "FAIL" and got["freecad:history polygons"] == "pass"
+    assert got["freecad:poles"] == "FAIL" and got["freecad:history polygons"] == "FAIL"
     assert [v for k, v in got.items() if k.endswith("curve samples")] == ["FAIL"]
-    # A broken macro (multiplicities that do not fit the poles) makes freecadcmd exit 1.
-    path.write_text(re.sub(r"^MULTS = \[\d+", "MULTS = [1", text, flags=re.M))
+    # A broken macro (an op index that does not exist) makes freecadcmd exit 1.
+    last["index"] = 999
+    path.write_text(fill_python("freecad_macro.py", data))
     with pytest.raises(ExportError, match=r"exit 1"):
         hosts.run_freecad(path, [tmp_path / "x.FCStd"], timeout=120)
     got = statuses(exporter.validate(path, result))
     assert got == {"freecad:run macro": "FAIL"}
+
+
+def data_of(text: str) -> dict:
+    """The DATA literal of a generated script."""
+    (node,) = [n for n in ast.parse(text).body if isinstance(n, ast.Assign) and n.targets[0].id == "DATA"]
+    return ast.literal_eval(node.value)
 
 
 @needs_openscad

@@ -5,6 +5,7 @@ The builders here are imported by the other ``test_export_*`` modules.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -14,7 +15,7 @@ from hypothesis import strategies as st
 from scipy.interpolate import BSpline
 
 from gsr_cad.errors import ExportError, OpError
-from gsr_cad.exporters import base
+from gsr_cad.exporters import base, model
 from gsr_cad.ops import curve as curve_ops
 from gsr_cad.reconstruct.result import Result
 
@@ -73,7 +74,7 @@ def scipy_curve(result: Result, params: np.ndarray) -> np.ndarray:
 
 def test_history_replays_ops_and_labels_them():
     result = hand_result(seed=4, n_ops=9)
-    history = base.curve_history(result)
+    history = model.curve_history(result)
     assert len(history) == len(result.genome) + 1
     assert history[0].label == "00 template" and history[0].op is None
     np.testing.assert_array_equal(history[0].points, np.asarray(result.config["template"]))
@@ -94,28 +95,30 @@ def test_history_replays_ops_and_labels_them():
 
 def test_op_label_pads_to_the_genome_length():
     add = {"op": "add_point", "index": 2, "position": [0.41, 0.77]}
-    assert base.op_label(3, add) == "03 add point 2 at (0.41, 0.77)"
-    assert base.op_label(7, {"op": "move_point", "index": 1, "delta": [0.1, -0.25]}, width=3) == \
+    assert model.op_label(3, add) == "03 add point 2 at (0.41, 0.77)"
+    assert model.op_label(7, {"op": "move_point", "index": 1, "delta": [0.1, -0.25]}, width=3) == \
         "007 move point 1 by (0.1, -0.25)"
-    assert base.op_label(12, {"op": "scale", "factor": 2.0}) == "12 scale factor=2.0"
+    assert model.op_label(12, {"op": "scale", "factor": 2.0}) == "12 scale factor=2.0"
 
 
-def test_history_rejects_a_result_it_cannot_rebuild():
+def test_the_genome_wins_over_stored_control_points():
     result = hand_result(seed=1)
-    edited = Result(**{**result.__dict__, "control_points": result.control_points + 1e-3})
-    with pytest.raises(ExportError, match="does not rebuild control_points"):
-        base.curve_history(edited)
-    no_template = Result(**{**result.__dict__, "config": {"scheme": "bspline"}})
+    edited = dataclasses.replace(result, control_points=result.control_points + 1e-3)
+    np.testing.assert_array_equal(edited.control_points, result.control_points)
+    assert len(edited.notes) == 1 and "the genome wins" in edited.notes[0] and "0.00141" in edited.notes[0]
+    assert result.notes == []
+    np.testing.assert_array_equal(model.curve_history(edited)[-1].points, result.control_points)
+    no_template = dataclasses.replace(result, config={"scheme": "bspline"})
     with pytest.raises(ExportError, match="no config.template"):
-        base.curve_history(no_template)
+        model.curve_history(no_template)
     boxed = dict(result.config, bounds=[[-1e-9, -1e-9], [1e-9, 1e-9]])  # every op now leaves the box
-    with pytest.raises(ExportError, match="does not replay"):
-        base.curve_history(Result(**{**result.__dict__, "config": boxed}))
+    with pytest.raises(OpError, match=r"genome op 0 \(.*\) no longer applies"):
+        dataclasses.replace(result, config=boxed)
 
 
 def test_curve_spline_matches_scipy_and_rejects_short_polygons():
     result = hand_result(seed=2, scheme="chaikin")
-    spline = base.curve_spline(result)
+    spline = model.curve_spline(result)
     assert spline.degree == 2 and spline.knots[0] == 0.0 and spline.knots[-1] == 1.0
     assert spline.multiplicities.sum() == len(spline.poles) + 3
     u = np.linspace(0, 1, 101)
@@ -125,7 +128,7 @@ def test_curve_spline_matches_scipy_and_rejects_short_polygons():
     short = Result(kind="curve", config={"scheme": "bspline"}, seed=None, genome=(), metrics={}, history=[],
                    control_points=np.zeros((3, 2)))
     with pytest.raises(ExportError, match="at least 4 control points"):
-        base.curve_spline(short)
+        model.curve_spline(short)
 
 
 def test_checks_measure_and_compare():
@@ -144,7 +147,7 @@ def test_checks_measure_and_compare():
 def test_bezier_pieces_are_the_curve(n, scheme, seed):
     pts = np.random.default_rng(seed).normal(size=(n, 2)) * 10
     result = polygon_result(pts, scheme)
-    spline = base.curve_spline(result)
+    spline = model.curve_spline(result)
     pieces = spline.bezier()
     t = np.linspace(0, 1, 7)
     k = spline.degree
@@ -152,3 +155,32 @@ def test_bezier_pieces_are_the_curve(n, scheme, seed):
     got = np.einsum("ti,sid->std", coeff, pieces).reshape(-1, 2)
     params = ((np.arange(spline.n_spans)[:, None] + t[None]) / spline.n_spans).ravel()
     np.testing.assert_allclose(got, scipy_curve(result, params), atol=1e-9 * np.abs(pts).max())
+
+
+@pytest.mark.parametrize("kind", ["curve", "surface"])
+def test_one_replay_and_one_limit_mesh_per_export_run_and_per_validation(kind, tmp_path, monkeypatch):
+    from test_export_surface_hosts import surface_result
+
+    from gsr_cad.ops.base import Op
+    from gsr_cad.reconstruct.export import export, format_names, validate
+
+    for host in ("BLENDER", "FREECAD", "OPENSCAD", "CADQUERY_PYTHON"):  # count our work, not the hosts'
+        monkeypatch.setenv(f"GSR_{host}", str(tmp_path / "absent"))
+    source = hand_result(seed=5, n_ops=7) if kind == "curve" else surface_result()
+    source.save(tmp_path / "out")
+    applied, limits = [], []
+    for cls in {type(op) for op in source.genome}:
+        real_apply = cls.apply
+        monkeypatch.setattr(cls, "apply",
+                            lambda self, state, real=real_apply: applied.append(self) or real(self, state))
+    real_limit = model.limit_mesh
+    monkeypatch.setattr(model, "limit_mesh", lambda *a: limits.append(a) or real_limit(*a))
+    assert all(isinstance(op, Op) for op in source.genome)
+    result = Result.load(tmp_path / "out")
+    names = [n for n in format_names(kind) if n != "step"] + ["step"]
+    written = export(result, tmp_path / "out", names)
+    assert len(written) >= len(names)
+    assert len(applied) == len(source.genome) and len(limits) == (kind == "surface")
+    checks = validate(tmp_path / "out")
+    assert checks and not [c for c in checks if c.passed is False]
+    assert len(applied) == 2 * len(source.genome) and len(limits) == 2 * (kind == "surface")

@@ -19,7 +19,8 @@ from gsr_cad import genome as genome_mod
 from gsr_cad.cli.formats import export_all, format_names
 from gsr_cad.errors import ExportError
 from gsr_cad.exporters import hosts
-from gsr_cad.exporters.blender import BlenderExporter, surface_model
+from gsr_cad.exporters.blender import BlenderExporter
+from gsr_cad.exporters.model import surface_model
 from gsr_cad.exporters.freecad import FreecadMacroExporter
 from gsr_cad.exporters.openscad import OpenscadExporter
 from gsr_cad.geometry.polymesh import unit_cube
@@ -60,15 +61,16 @@ def test_surface_model_replays_labels_and_limit():
     np.testing.assert_array_equal(model.limit.vertices, limit_mesh(result.control_mesh, 2).vertices)
 
 
-def test_surface_model_rejects_an_inconsistent_result(tmp_path):
+def test_surface_exports_follow_the_genome_not_a_stale_control_mesh(tmp_path):
     result = surface_result()
     moved = np.array(result.control_mesh.vertices)
     moved[0] += 0.01
-    bad = Result(kind="surface", config=result.config, seed=None, genome=result.genome, metrics={}, history=[],
-                 control_mesh=result.control_mesh.with_vertices(moved))
+    stale = Result(kind="surface", config=result.config, seed=None, genome=result.genome, metrics={}, history=[],
+                   control_mesh=result.control_mesh.with_vertices(moved))
+    assert stale.notes and "the genome wins" in stale.notes[0]
+    np.testing.assert_array_equal(stale.control_mesh.vertices, result.control_mesh.vertices)
     for exporter in (BlenderExporter(), OpenscadExporter(), FreecadMacroExporter()):
-        with pytest.raises(ExportError, match="does not rebuild control_mesh"):
-            exporter.export(bad, tmp_path, "bad")
+        assert exporter.render(stale, "s") == exporter.render(result, "s")
     no_template = Result(kind="surface", config={"levels": 2}, seed=None, genome=result.genome, metrics={},
                          history=[], control_mesh=result.control_mesh)
     with pytest.raises(ExportError, match="template"):
@@ -85,10 +87,10 @@ def test_scad_polyhedron_faces_are_clockwise_from_outside(tmp_path):
     result = surface_result()
     (path,) = OpenscadExporter().export(result, tmp_path, "s")
     text = path.read_text(encoding="utf-8")
-    block = lambda name: re.search(rf"{name} = \[\n(.*?)\n\];", text, re.S).group(1)  # noqa: E731
-    centre = np.array(json.loads(re.search(r"gsr_centre = (\[.*?\]);", text).group(1)))
-    points = np.array(json.loads("[" + block("gsr_limit_points") + "]")) + centre
-    faces = np.array(json.loads("[" + block("gsr_limit_faces") + "]"))
+    block = lambda name: re.search(rf"^{name} = (\[.*\]);$", text, re.M).group(1)  # noqa: E731
+    centre = np.array(json.loads(block("gsr_centre")))
+    points = np.array(json.loads(block("gsr_limit_points"))) + centre
+    faces = np.array(json.loads(block("gsr_limit_faces")))
     a, b, c = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
     signed = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
     assert signed < 0  # clockwise seen from outside: negative in the right-handed convention
@@ -126,9 +128,10 @@ def test_blender_surface_changed_op_fails(exported, tmp_path):
     _need("blender")
     result, _, files = exported
     text = files[".py"].read_text(encoding="utf-8")
-    assert "extrude(bm, V, F, face=5, distance=0.42)" in text
+    op = "{'op': 'extrude', 'face': 5, 'distance': 0.42}"
+    assert op in text
     edited = tmp_path / "edited_blender.py"
-    edited.write_text(text.replace("face=5, distance=0.42", "face=5, distance=0.45"), encoding="utf-8")
+    edited.write_text(text.replace(op, op.replace("0.42", "0.45")), encoding="utf-8")
     got = statuses(BlenderExporter().validate(edited, result))
     assert got["control vertices"] == "FAIL"
 
@@ -150,16 +153,16 @@ def test_openscad_moved_vertex_and_flipped_faces_fail(exported, tmp_path):
     _need("openscad")
     result, _, files = exported
     text = files[".scad"].read_text(encoding="utf-8")
-    start = text.index("gsr_limit_points = [\n  [") + len("gsr_limit_points = [\n  [")
+    start = text.index("gsr_limit_points = [[") + len("gsr_limit_points = [[")
     end = text.index(",", start)
     moved = tmp_path / "moved.scad"
     moved.write_text(text[:start] + repr(float(text[start:end]) + 1e-3) + text[end:], encoding="utf-8")
     assert statuses(OpenscadExporter().validate(moved, result))["limit mesh (level 2) vertices and triangles"] == "FAIL"
-    head, body = text.split("gsr_limit_faces = [\n", 1)
-    faces, tail = body.split("\n];", 1)
+    head, body = text.split("gsr_limit_faces = ", 1)
+    faces, tail = body.split(";", 1)
     flipped_faces = re.sub(r"\[(\d+), (\d+), (\d+)\]", r"[\3, \2, \1]", faces)
     flipped = tmp_path / "flipped.scad"
-    flipped.write_text(head + "gsr_limit_faces = [\n" + flipped_faces + "\n];" + tail, encoding="utf-8")
+    flipped.write_text(head + "gsr_limit_faces = " + flipped_faces + ";" + tail, encoding="utf-8")
     assert statuses(OpenscadExporter().validate(flipped, result))["volume sign"] == "FAIL"
 
 
@@ -185,7 +188,7 @@ def test_freecad_changed_op_fails(exported, tmp_path):
     assert "'01 extrude face 5 by 0.42'" in text
     edited = tmp_path / "edited.FCMacro"
     edited.write_text(text.replace("'01 extrude face 5 by 0.42'", "'01 extrude face 5 by 0.5'")
-                      .replace('"distance": 0.42}', '"distance": 0.5}'), encoding="utf-8")
+                      .replace("'distance': 0.42}", "'distance': 0.5}"), encoding="utf-8")
     got = statuses(FreecadMacroExporter().validate(edited, result))
     assert got["op labels"] == "FAIL" and got["op records"] == "FAIL"
 
@@ -204,7 +207,7 @@ def test_gsr_validate_passes_then_reports_a_damaged_file(gsr, exported, tmp_path
     assert "blender" in run.out and "openscad" in run.out and "freecad" in run.out
     scad = copy / files[".scad"].name
     text = scad.read_text(encoding="utf-8")
-    pos = text.index("gsr_cage_points = [\n  [") + len("gsr_cage_points = [\n  [")
+    pos = text.index("gsr_cage_points = [[") + len("gsr_cage_points = [[")
     scad.write_text(text[:pos] + "0.5 + " + text[pos:], encoding="utf-8")
     run = gsr("validate", copy)
     failed = [row for row in run.out.splitlines() if " FAIL " in row]
@@ -228,9 +231,10 @@ def test_blender_curve_script_rebuilds_history_and_nurbs(tmp_path, scheme):
     assert any(k.endswith("evaluated points") and v == "pass" for k, v in got.items())
     text = path.read_text(encoding="utf-8")
     op = result.genome[-1].to_json()
-    assert f"# {len(result.genome):02d} " in text and (f"{op['op']}(points, {op['index']}" in text)
+    field = "position" if op["op"] == "add_point" else "delta"
+    record = "{'op': %r, 'index': %d, %r: [" % (op["op"], op["index"], field)
+    assert f"'{len(result.genome):02d} " in text and record in text
     edited = tmp_path / "edited_blender.py"
-    call = f"{op['op']}(points, {op['index']}, ("
-    edited.write_text(text.replace(call, call + "0.25 + "), encoding="utf-8")
+    edited.write_text(text.replace(record, record + "0.25 + "), encoding="utf-8")
     got = statuses(exporter.validate(edited, result))
     assert got["poles"] == "FAIL" and got["history polygons"] == "FAIL"  # judged, not a crashed script

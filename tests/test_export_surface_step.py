@@ -6,6 +6,8 @@ Oracles: OCP's STEP reader, BRepCheck_Analyzer and mass properties, OCCT's point
 
 from __future__ import annotations
 
+import ast
+import copy
 import json
 import re
 
@@ -15,8 +17,11 @@ from conftest import statuses
 
 from gsr_cad.cli import formats
 from gsr_cad.errors import ExportError
-from gsr_cad.exporters.cadquery import CadqueryExporter, cadquery_python
-from gsr_cad.exporters.step import StepExporter, read_step_shape
+from gsr_cad.exporters.cadquery import CadqueryExporter
+from gsr_cad.exporters.encode import fill_python
+from gsr_cad.exporters.hosts import cadquery_python
+from gsr_cad.exporters.checks import read_step_shape
+from gsr_cad.exporters.step import StepExporter
 from gsr_cad.geometry import subdivision
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.reconstruct.result import Result
@@ -123,11 +128,17 @@ def test_cadquery_script_rebuilds_the_solid(tmp_path):
     assert all(c.passed for c in checks), [c for c in checks if not c.passed]
     assert {"one closed solid", "deviation from the limit surface"} <= set(statuses(checks))
     text = script.read_text()
-    first = re.search(r"\(\[\[\(([-0-9.e]+),", text)  # the first pole of the first patch
-    script.write_text(text[:first.start(1)] + repr(float(first.group(1)) + 0.5) + text[first.end(1):])
+    (node,) = [n for n in ast.parse(text).body if isinstance(n, ast.Assign) and n.targets[0].id == "DATA"]
+    data = ast.literal_eval(node.value)
+
+    def edited(row: int, column: int) -> str:  # the script with one pole of the first patch moved by 0.5 in x
+        moved = copy.deepcopy(data)
+        moved["patches"][0]["poles"][row][column][0] += 0.5
+        return fill_python("cadquery_script.py", moved)
+
+    script.write_text(edited(0, 0))
     assert any(c.status == "FAIL" for c in CadqueryExporter().validate(script, result))
     # An inner pole (row 1, column 1 of the first patch) keeps the solid valid: the measured deviation catches it.
-    inner = re.search(r"\(\[\[[^\]]*\], \[\([^)]*\), \(([-0-9.e]+),", text)
-    script.write_text(text[:inner.start(1)] + repr(float(inner.group(1)) + 0.5) + text[inner.end(1):])
+    script.write_text(edited(1, 1))
     got = statuses(CadqueryExporter().validate(script, result))
     assert got["one closed solid"] == "pass" and got["deviation from the limit surface"] == "FAIL"

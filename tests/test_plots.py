@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+from matplotlib.collections import LineCollection
 from matplotlib.colors import to_rgb
 from matplotlib.image import imread
 from scipy.interpolate import BSpline
@@ -17,6 +18,7 @@ from gsr_cad.errors import ExportError, InputError
 from gsr_cad.ops import curve as curve_ops
 from gsr_cad.plots import ADD_COLOUR, CURVE_SAMPLES, MOVE_COLOUR, curve_figure, curve_report
 from gsr_cad.reconstruct.result import Result
+from gsr_cad.reconstruct.units import format_length
 from gsr_cad.reconstruct.samples import get_sample
 
 
@@ -56,6 +58,11 @@ def history(n: int) -> list[dict]:
              "seconds": 0.1 * (g + 1)} for g in range(n)]
 
 
+def line_collection(ax):
+    (lc,) = [c for c in ax.collections if isinstance(c, LineCollection)]
+    return lc
+
+
 def axis(fig, title_start: str):
     (ax,) = [a for a in fig.axes if a.get_title(loc="left").startswith(title_start)]
     return ax
@@ -73,27 +80,32 @@ def test_curve_row_is_the_result_coloured_by_its_distance_to_the_target(wave):
     s, genome, ctrl = wave
     fig = curve_figure(make_result(ctrl, genome, history(12)), s.points, s.truth_ctrl, title="wave")
     ax = axis(fig, "result curve")
-    (lc,) = ax.collections[1:]  # the scatter of targets comes first
+    lc = line_collection(ax)
     segs = np.array(lc.get_segments())
     curve = scipy_curve(ctrl, CURVE_SAMPLES, 3)
     np.testing.assert_allclose(segs[:, 0], curve[:-1], atol=1e-9)
     np.testing.assert_allclose(segs[-1, 1], curve[-1], atol=1e-9)
     diag = np.linalg.norm(np.ptp(s.points, axis=0))
-    d = 100 * oracle_deviation(ctrl, s.points, 3, CURVE_SAMPLES) / diag  # percent of the diagonal
-    np.testing.assert_allclose(lc.get_array(), 0.5 * (d[1:] + d[:-1]), atol=2e-3)
-    top = 100 * cKDTree(scipy_curve(ctrl, 200_001, 3)).query(s.points)[0].max() / diag
+    d = oracle_deviation(ctrl, s.points, 3, CURVE_SAMPLES)  # model units
+    np.testing.assert_allclose(lc.get_array(), 0.5 * (d[1:] + d[:-1]), atol=2e-3 * diag / 100)
+    dist = cKDTree(scipy_curve(ctrl, 200_001, 3)).query(s.points)[0]
+    top = dist.max()
     assert lc.get_clim() == pytest.approx((0.0, top), rel=1e-4)
-    assert lc.get_array().max() > 0.1  # the perturbed points really pull the curve off the target
+    assert lc.get_array().max() > 1e-3 * diag  # the perturbed points really pull the curve off the target
     np.testing.assert_array_equal(ax.collections[0].get_offsets(), s.points)
-    assert "wave" in fig._suptitle.get_text() and "0.09 %" in fig._suptitle.get_text()
+    worst = ax.collections[-1]  # the worst target point, marked
+    np.testing.assert_array_equal(worst.get_offsets(), s.points[[np.argmax(dist)]])
+    title = fig._suptitle.get_text()
+    assert "wave" in title and f"max {format_length(9e-4, diag)}" in title  # the metric, in both units
+    assert any(a.get_ylabel().startswith("target distance, model units") for a in fig.axes)  # the colour bar
 
 
 def test_an_exact_fit_to_sparse_data_is_coloured_as_exact():
     s = get_sample("bspline_07_sparse")
     genome, ctrl = genome_onto(s.points, s.truth_ctrl)
     fig = curve_figure(make_result(ctrl, genome, history(2)), s.points, s.truth_ctrl)
-    (lc,) = axis(fig, "result curve").collections[1:]
-    assert lc.get_array().max() < 1e-7  # chords between the sparse points would show ~1 % here
+    lc = line_collection(axis(fig, "result curve"))
+    assert lc.get_array().max() < 1e-9  # chords between the sparse points would show ~1 % here
 
 
 def test_polygon_row_overlays_result_on_truth(wave):
@@ -104,7 +116,7 @@ def test_polygon_row_overlays_result_on_truth(wave):
     np.testing.assert_array_equal(lines["result (7 points)"], ctrl)
     np.testing.assert_array_equal(lines["ground truth (7 points)"], s.truth_ctrl)
     dev = 0.4 / np.linalg.norm(np.ptp(s.points, axis=0))
-    assert f"{100 * dev:.2g} %" in ax.get_title(loc="left")
+    assert f"max point deviation 0.4 model units ({100 * dev:.2g} %)" in ax.get_title(loc="left")
     no_truth = curve_figure(make_result(ctrl, genome, history(3)), s.points)
     assert [ln.get_label() for ln in axis(no_truth, "result control polygon").get_lines()][-1] == "result (7 points)"
 
@@ -114,11 +126,14 @@ def test_genome_row_has_one_bar_per_op_in_order(wave):
     fig = curve_figure(make_result(ctrl, genome, history(3)), s.points)
     bars = axis(fig, "genome").patches
     assert len(bars) == len(genome)
-    moves = [np.hypot(*op.delta) for op in genome if op.name == "move_point"]
-    for bar, op in zip(bars, genome):
+    states = genome_mod.replay_states(curve_ops.template(s.points, margin=1.0), genome)
+    for k, (bar, op) in enumerate(zip(bars, genome)):
         colour = to_rgb(bar.get_facecolor())
-        if op.name == "add_point":
-            assert colour == pytest.approx(to_rgb(ADD_COLOUR)) and bar.get_height() == pytest.approx(max(moves))
+        if op.name == "add_point":  # height: the new point's distance from the edge it splits (dense oracle)
+            a, b = states[k].points[op.index - 1], states[k].points[op.index]
+            edge = a + np.linspace(0, 1, 100_001)[:, None] * (b - a)
+            off = np.min(np.linalg.norm(edge - np.asarray(op.position), axis=1))
+            assert colour == pytest.approx(to_rgb(ADD_COLOUR)) and bar.get_height() == pytest.approx(off, abs=1e-4)
         else:
             assert colour == pytest.approx(to_rgb(MOVE_COLOUR))
             assert bar.get_height() == pytest.approx(np.hypot(*op.delta))
@@ -143,7 +158,7 @@ def test_interrupted_result_with_nothing_done_still_reports(tmp_path, wave):
     template = np.asarray(curve_ops.template(s.points).points)
     result = make_result(template, (), [], interrupted=True, metrics={})
     fig = curve_figure(result, s.points)
-    assert "INTERRUPTED" in fig._suptitle.get_text()
+    assert "interrupted: best so far" in fig._suptitle.get_text()
     assert "(interrupted)" in axis(fig, "convergence").get_title(loc="left")
     texts = [t.get_text() for ax in fig.axes for t in ax.texts]
     assert "no generation completed" in texts and "empty genome (template only)" in texts
@@ -158,7 +173,7 @@ def test_long_genome_and_chaikin_scheme(tmp_path):
     ctrl = s.points[::20]
     fig = curve_figure(make_result(ctrl, genome, history(500), scheme="chaikin"), s.points)
     assert len(axis(fig, "genome").patches) == 600
-    (lc,) = axis(fig, "result curve").collections[1:]
+    lc = line_collection(axis(fig, "result curve"))
     np.testing.assert_allclose(np.array(lc.get_segments())[:, 0], scipy_curve(ctrl, CURVE_SAMPLES, 2)[:-1], atol=1e-9)
     assert "degree 2" in fig._suptitle.get_text()
 
@@ -205,8 +220,9 @@ def test_real_reconstruction_reports(tmp_path):
                                generations=4)
     fig = curve_figure(result, s.points, s.truth_ctrl)
     assert len(axis(fig, "genome").patches) == len(result.genome)
-    (lc,) = axis(fig, "result curve").collections[1:]
-    assert lc.get_clim()[1] == pytest.approx(100 * result.metrics["max_distance"], rel=1e-4)  # colour bar = metric
+    lc = line_collection(axis(fig, "result curve"))
+    diag = result.config["target"]["diagonal"]
+    assert lc.get_clim()[1] == pytest.approx(result.metrics["max_distance"] * diag, rel=1e-4)  # colour bar = metric
     best = axis(fig, "convergence").get_lines()[-1].get_ydata()
     np.testing.assert_allclose(best, [h["best_fitness"] for h in result.history])
     assert np.all(np.diff(best) <= 1e-12)  # elitism: the best never gets worse
@@ -216,3 +232,64 @@ def test_real_reconstruction_reports(tmp_path):
 def test_importing_plots_does_not_import_matplotlib():
     code = "import sys, gsr_cad.plots; sys.exit('matplotlib' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_deviation_row_has_the_tolerance_line_and_the_worst_point(wave):
+    s, genome, ctrl = wave
+    diag = float(np.linalg.norm(np.ptp(s.points, axis=0)))
+    result = make_result(ctrl, genome, history(3))
+    result.config.update(max_distance=2e-3, units="mm", target={"name": "t", "diagonal": diag})
+    ax = axis(curve_figure(result, s.points), "deviation along the curve")
+    dist = cKDTree(scipy_curve(ctrl, 200_001, 3)).query(s.points)[0]
+    (tol,) = [ln for ln in ax.get_lines() if ln.get_label().startswith("tolerance")]
+    assert tol.get_ydata()[0] == pytest.approx(2e-3 * diag)
+    assert tol.get_label().endswith("MISSED") == (result.metrics["max_distance"] > 2e-3)
+    worst = [c for c in ax.collections if c.get_label().startswith("worst")][0]
+    assert worst.get_offsets()[0][1] == pytest.approx(dist.max(), rel=1e-4)
+    assert ax.get_ylabel() == "distance, mm" and ax.get_ylim()[1] >= dist.max()
+
+
+def test_history_strip_replays_the_genome_prefix_by_prefix(wave):
+    s, genome, ctrl = wave
+    fig = curve_figure(make_result(ctrl, genome, history(3)), s.points)
+    panels = [a for a in fig.axes if a.get_xlabel() == "template" or a.get_xlabel()[:1].isdigit()]
+    assert 2 <= len(panels) <= 8 and panels[0].get_xlabel() == "template"
+    assert panels[-1].get_xlabel() == f"{len(genome)}: {genome[-1].name}"
+    np.testing.assert_allclose(panels[-1].get_lines()[1].get_xydata(), ctrl)  # the last step is the result
+    template = np.asarray(curve_ops.template(s.points, margin=1.0).points)
+    np.testing.assert_allclose(panels[0].get_lines()[1].get_xydata(), template)
+
+
+def test_an_insertion_off_its_edge_gets_a_bar_as_high_as_its_offset():
+    s = get_sample("bspline_05")
+    poly = curve_ops.template(s.points, margin=1.0)
+    a, b = poly.points[1], poly.points[2]
+    normal = np.array([-(b - a)[1], (b - a)[0]]) / np.linalg.norm(b - a)
+    op = curve_ops.AddPoint(2, tuple((0.5 * (a + b) + 0.3 * normal).tolist()))
+    ctrl = np.asarray(genome_mod.replay(poly, [op]).points)
+    fig = curve_figure(make_result(ctrl, (op,), history(2)), s.points)
+    (bar,) = axis(fig, "genome").patches
+    assert bar.get_height() == pytest.approx(0.3)
+
+
+def test_surface_report_draws_the_target_beside_the_result_in_three_views(tmp_path):
+    from gsr_cad.reconstruct.surface import reconstruct_surface
+    from gsr_cad.plots import VIEWS, surface_figure, surface_report
+
+    sample = get_sample("inset_extrude")
+    result = reconstruct_surface(sample.target, seed=1, units="mm", population=10, initial_population=10,
+                                 n_parents=4, n_perturb=2, n_newcomers=2, generations=2)
+    fig = surface_figure(result)
+    titles = [a.get_title() for a in fig.axes]
+    for name, *_ in VIEWS:
+        assert any(t.startswith("target (mesh") and t.endswith(name) for t in titles)
+        assert any(t.startswith("result: level-2 limit surface") and t.endswith(name) for t in titles)
+    (cbar,) = [a for a in fig.axes if a.get_ylabel().startswith("distance to target, mm")]
+    diag = result.target.diagonal
+    top = result.metrics["max_distance_to_target"] * diag
+    assert cbar.get_ylim()[1] == pytest.approx(top, rel=0.05)  # the result's own range, in mm
+    strip = [t for t in titles if t == "template" or t[:1].isdigit()]
+    assert strip[0] == "template" and strip[-1].startswith(f"{len(result.genome)}: ")
+    assert "lengths in mm" in fig._suptitle.get_text()
+    again = Result.from_json(result.to_json())  # no target: the result alone, uncoloured, still drawn
+    assert surface_report(again, tmp_path / "r.png").stat().st_size > 10_000

@@ -36,7 +36,7 @@ def test_surface_writes_result_meshes_report_and_blender_script(gsr, tmp_path, e
     res = gsr("surface", extended_obj, "-o", out, "--seed", "1", "--formats", "blender", "--quiet")
     assert res.code == 0, res.err
     assert {p.name for p in out.iterdir()} == {"result.json", "control_mesh.obj", "limit_mesh.obj", "report.png",
-                                              "surface_blender.py"}
+                                              "report.html", "surface_blender.py", "exports.json"}
     result = Result.load(out)
     data = json.loads((out / "result.json").read_text())
     assert data["kind"] == "surface" and data["config"]["template"]["source"] == "cube"

@@ -7,13 +7,17 @@ Every deliberate error (:class:`~gsr_cad.errors.GsrError`) and every argument er
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import sys
+import warnings
 from collections.abc import Sequence
 
-from ..errors import GsrError
+from ..errors import GsrError, GsrWarning
+from . import signals
 
-SUBCOMMANDS = ("curve", "surface", "replay", "validate", "subdivide", "sample")
+SUBCOMMANDS = ("curve", "surface", "replay", "validate", "subdivide", "sample", "resume", "batch")
 
 
 class UsageError(Exception):
@@ -25,8 +29,22 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+def _version() -> str:
+    """The installed package's version (its metadata), or the source tree's when not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("gsr-cad")
+    except PackageNotFoundError:
+        from .. import __version__
+
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="gsr", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"gsr {_version()}",
+                        help="print the installed gsr_cad version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in SUBCOMMANDS:
         try:
@@ -39,21 +57,79 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """GsrWarnings become one ``warning: ...`` line; every other warning (numpy's among them) is silenced."""
+    if issubclass(category, GsrWarning):
+        print(f"warning: {str(message).splitlines()[0]}", file=sys.stderr)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _os_error(exc: OSError) -> str:
+    where = f"{exc.filename}: " if exc.filename else ""
+    return f"{where}{exc.strerror or _one_line(exc)}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-        if not getattr(args, "command", None):
-            parser.print_help()
+    """Run the CLI; returns the exit code (0 done, 2 bad input or failure, 3 tolerance missed, 130 interrupted).
+
+    No traceback reaches the user: deliberate errors and OS errors (a full disk, a read-only directory)
+    are one ``error: ...`` line with exit code 2; anything else is reported as an internal error (exit 1)
+    unless ``GSR_DEBUG=1`` asks for the traceback. Run as the program (``argv`` None) after Ctrl-C or
+    SIGTERM, the process ends right away once its output is flushed (native threads of half-stopped
+    libraries cannot then crash the interpreter's shutdown).
+    """
+    code = _main(argv)
+    if argv is None and signals.interrupted():
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    with warnings.catch_warnings(), signals.handled(), contextlib.ExitStack() as stack:
+        warnings.showwarning = _show_warning
+        warnings.simplefilter("always", GsrWarning)
+        try:
+            parser = build_parser()  # imports the subcommands (numpy, scipy): Ctrl-C is handled from here on
+            import numpy as np
+
+            stack.enter_context(np.errstate(all="ignore"))
+            args = parser.parse_args(argv)
+            if not getattr(args, "command", None):
+                parser.print_help()
+                return 2
+            return int(args.run(args) or 0)
+        except UsageError as exc:
+            print(f"error: {exc}", file=sys.stderr)
             return 2
-        return int(args.run(args) or 0)
-    except UsageError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except GsrError as exc:
-        print(f"error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        except GsrError as exc:
+            print(f"error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            if os.environ.get("GSR_DEBUG") == "1":
+                import traceback
+
+                traceback.print_exc()
+            print("error: interrupted", file=sys.stderr)
+            return 130
+        except MemoryError:
+            print("error: out of memory (try a smaller input or --max-target-points)", file=sys.stderr)
+            return 2
+        except OSError as exc:
+            print(f"error: {_os_error(exc)}", file=sys.stderr)
+            return 2
+        except (RecursionError, OverflowError) as exc:
+            print(f"error: input too large or too deeply nested ({_one_line(exc)})", file=sys.stderr)
+            return 2
+        except Exception as exc:
+            if os.environ.get("GSR_DEBUG") == "1":
+                raise
+            print(f"error: internal error: {type(exc).__name__}: {_one_line(exc)} (GSR_DEBUG=1 shows the "
+                  "traceback; please report it)", file=sys.stderr)
+            return 1

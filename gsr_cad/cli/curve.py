@@ -1,7 +1,7 @@
 """``gsr curve POINTS -o OUT``: reconstruct a control polygon and write result.json, CSV, report and exports.
 
-Exit codes: 0 done, 2 bad input or settings, 3 finished but the requested --max-distance was not met
-(data -> curve or curve -> data; the result is still written).
+Exit codes: 0 done, 2 bad input or settings, 3 finished but the requested --max-distance was not met both ways
+(data -> curve or curve -> data, on all points; the result is still written).
 """
 
 from __future__ import annotations
@@ -13,9 +13,11 @@ import warnings
 from ..reconstruct.config import PRESETS, CurveConfig
 from ..reconstruct.curve import CurveWarning, reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
-from ._common import (add_config_flags, config_overrides, parse_formats, plots_module, prepare_out_dir,
-                      write_control_points, write_exports)
-from .progress import ga_progress
+from ..reconstruct.units import resolve_lengths
+from ._common import (add_config_flags, add_run_flags, check_run_args, config_overrides, html_module, output_dir,
+                      parse_formats, plots_module, save_run_args, searching, settle_stop, write_control_points,
+                      write_exports, write_outputs)
+from .summary import add_model_units, finish
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,49 +29,50 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          help="fit a closed (periodic) curve (default: detected from the data)")
     closure.add_argument("--open", dest="closure_flag", action="store_const", const="open",
                          help="fit an open curve even when the data close")
-    p.add_argument("-o", "--out", required=True, help="output directory")
     p.add_argument("--preset", choices=PRESETS, default="default",
                    help="'paper' reproduces the paper's GA exactly; 'default' adds least-squares placement")
-    p.add_argument("--seed", type=int, default=None, help="random seed (same seed, same result)")
     p.add_argument("--truth", help="ground-truth control points (CSV) to draw in the report")
-    p.add_argument("--formats", help="comma-separated export formats (default: all installed); 'none' for none")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_flags(p)
     add_config_flags(p, CurveConfig, skip=())
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     target = curve_target(args.points)
-    overrides = config_overrides(args, CurveConfig)
+    overrides = resolve_lengths(config_overrides(args, CurveConfig), target.diagonal, CurveConfig)
     if args.closure_flag:
         overrides["closure"] = args.closure_flag
     config = CurveConfig.preset(args.preset, **overrides)
+    check_run_args(args)
     truth = load_curve_points(args.truth) if args.truth else None
     formats = parse_formats(args.formats, "curve")
-    out = prepare_out_dir(args.out)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", CurveWarning)
-        with ga_progress(f"curve {target.name}", enabled=not args.quiet) as on_generation:
-            result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
-                                       progress=on_generation)
-    for w in caught:
-        if issubclass(w.category, CurveWarning):
+    reports = html_module()  # a broken plotly install fails here, before the run
+    with output_dir(args.out) as out:
+        if args.checkpoint:
+            save_run_args(out, args)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", CurveWarning)
+            with searching(f"curve {target.name}", args.quiet, config.max_seconds) as (progress, should_stop):
+                result = reconstruct_curve(target, seed=args.seed, config=config, preset=args.preset,
+                                           progress=progress, should_stop=should_stop, checkpoint=args.checkpoint)
+    for w in caught:  # a missed tolerance is reported by finish(); the others (reordered points) here
+        if issubclass(w.category, CurveWarning) and "misses the requested" not in str(w.message):
             print(f"warning: {w.message}", file=sys.stderr)
-    result.save(out)
-    write_control_points(out / "control_points.csv", result.control_points)
-    if target.points.shape[1] == 2:
-        plots_module().curve_report(result, target.points, out / "report.png", truth=truth)
-    else:
-        print("  no report.png: the report draws planar curves only", file=sys.stderr)
-    written = write_exports(result, out, formats)
-    m = result.metrics
-    missed = m.get("tolerance_met") is False
-    status = "interrupted: best so far" if result.interrupted else ("tolerance missed" if missed else "done")
-    kind = ("closed" if m.get("closed") else "open") + (f", {m['n_corners']} corners" if m.get("n_corners") else "")
-    print(f"{status}: {m['n_control_points']} control points ({kind}), data->curve mean "
-          f"{m['data_to_fit_mean']:.3g} max {m['data_to_fit_max']:.3g}, curve->data max {m['fit_to_data_max']:.3g} "
-          f"of the diagonal, {m['seconds']:.2f} s -> {out}")
-    for path in written:
-        print(f"  wrote {path}")
-    return 3 if missed and not result.interrupted else 0
-
+    settle_stop(result)
+    add_model_units(result)
+    planar = target.points.shape[1] == 2
+    written = write_outputs(progress, [
+        ("writing result.json", lambda: result.save(out)),
+        ("writing control_points.csv",
+         lambda: write_control_points(out / "control_points.csv", result.control_points)),
+    ] + ([
+        ("drawing report.png",
+         lambda: plots_module().curve_report(result, target.points, out / "report.png", truth=truth)),
+        ("drawing report.html",
+         lambda: reports.curve_html(result, target.points, out / "report.html", truth=truth)),
+    ] if planar else []) + [
+        ("writing the exports", lambda: write_exports(result, out, formats)),
+    ])
+    if not planar:
+        print("  no report.png / report.html: the reports draw planar curves only", file=sys.stderr)
+    return finish(result, out, written[2:])

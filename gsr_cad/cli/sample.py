@@ -6,14 +6,16 @@ import argparse
 import sys
 
 from ..errors import InputError
+from ._common import check_output_file
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("sample", help="write a bundled sample target (the paper's examples among them)",
                               description=__doc__.splitlines()[0])
     p.add_argument("name", nargs="?", metavar="NAME", help="sample name (see --list)")
-    p.add_argument("-o", "--output", metavar="FILE",
+    p.add_argument("-o", "--out", dest="output", metavar="FILE",
                    help="where to write the target (curves: CSV with header x,y, or .npy; surfaces: mesh file)")
+    p.add_argument("--output", dest="output", help=argparse.SUPPRESS)  # the old spelling, kept working
     p.add_argument("--truth", metavar="FILE",
                    help="also write the ground truth (control polygon), if the sample has one")
     p.add_argument("--clean", metavar="FILE", help="also write the dense noise-free reference (curves)")
@@ -35,8 +37,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.name:
         raise InputError("sample needs a NAME (see gsr sample --list)")
     sample = get_sample(args.name)
-    if not args.output:
+    if args.output is None:
         raise InputError("sample needs -o FILE (where to write the target)")
+    for flag in ("output", "truth", "clean", "cloud"):
+        if getattr(args, flag) is not None:
+            check_output_file(getattr(args, flag), "-o" if flag == "output" else f"--{flag}")
     for flag, method in (("clean", "write_clean"), ("cloud", "write_cloud")):
         if getattr(args, flag) and not hasattr(sample, method):
             raise InputError(f"--{flag} does not apply to {sample.kind} sample {args.name!r}")

@@ -6,17 +6,21 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from ._common import check_output_file, whole_number
 
 DEFAULT_LEVELS = 2
+MAX_LEVELS = 64
+"""Levels beyond which no mesh fits in memory (each level quadruples the faces); refused before any work."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser("subdivide", help="Catmull-Clark subdivide a polygon mesh (OBJ, OFF, PLY, STL)",
                               description=__doc__.splitlines()[0])
     p.add_argument("mesh", metavar="MESH", help="control mesh: .obj, .off or .ply (n-gons kept) or .stl")
-    p.add_argument("-o", "--output", required=True, metavar="OUT",
+    p.add_argument("-o", "--out", dest="output", metavar="OUT",
                    help="refined mesh to write: .obj, .off, .ply (quads) or .stl (triangulated)")
-    p.add_argument("--levels", type=int, default=DEFAULT_LEVELS, metavar="K",
+    p.add_argument("--output", dest="output", help=argparse.SUPPRESS)  # the old spelling, kept working
+    p.add_argument("--levels", type=whole_number, default=DEFAULT_LEVELS, metavar="K",
                    help=f"subdivision steps (default {DEFAULT_LEVELS})")
     p.add_argument("--limit", action="store_true",
                    help="move every output vertex to its position on the limit surface")
@@ -31,7 +35,12 @@ def run(args: argparse.Namespace) -> int:
     from ..geometry.validation import mesh_report
     from ..reconstruct.meshio import WRITE_FORMATS, load_mesh, save_mesh
 
-    out = Path(args.output)
+    if not args.output:
+        raise InputError("subdivide needs -o OUT (the refined mesh to write)")
+    if args.levels > MAX_LEVELS:
+        raise InputError(f"--levels must lie in [0, {MAX_LEVELS}], not {args.levels} "
+                         "(each level quadruples the faces)")
+    out = check_output_file(args.output, "-o")
     if out.suffix.lower().lstrip(".") not in WRITE_FORMATS:
         raise InputError(f"{out.name}: cannot write format {out.suffix or '(no suffix)'!r} "
                          f"(use {', '.join('.' + f for f in WRITE_FORMATS)})")

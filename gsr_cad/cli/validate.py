@@ -1,5 +1,8 @@
-"""``gsr validate OUT``: round-trip every exported file in OUT through the CAD hosts installed here.
+"""``gsr validate OUT``: round-trip every file gsr exported into OUT through the CAD hosts installed here.
 
+Only what gsr wrote runs: a script that differs from the one regenerated from OUT/result.json ("modified"),
+a file the export manifest (OUT/exports.json) does not list ("not written by gsr") and a symlink are
+refused unrun, each as a failed check (:func:`gsr_cad.reconstruct.export.validate`).
 Prints one row per check (file, host, check, deviation, result, detail). Exit code 0 when every check
 that could run passed, 1 when one failed, 2 when nothing could be checked (no exported files, or none of
 their hosts installed) or OUT holds no readable result.json.
@@ -12,7 +15,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from .formats import validate_all
+from ..reconstruct.export import validate as validate_all
 
 COLUMNS = ("file", "host", "check", "deviation", "result", "detail")
 

@@ -9,10 +9,12 @@ the memo. The population is kept sorted by cost (stable, so ties keep their orde
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import os
 import pickle
 import secrets
+import stat
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -68,6 +70,15 @@ class RunResult:
     seed: int | None = None
 
 
+def fingerprint(*parts: Any) -> str:
+    """A short digest of ``parts`` (arrays by their bytes, anything else by its repr): a checkpoint's tag."""
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(np.ascontiguousarray(part).tobytes() if isinstance(part, np.ndarray) else repr(part).encode())
+        h.update(b"\0")
+    return h.hexdigest()[:32]
+
+
 def _clean_cost(value: Any) -> float:
     """A cost as a float; nan counts as the worst (inf), a negative cost breaks the problem's contract."""
     c = float(value)
@@ -86,15 +97,22 @@ class _CostFn:
         self.problem = problem
         self.sink = sink
         self.owner = os.getpid()
+        self.should_stop: Callable[[], bool] | None = None
+
+    def stopping(self) -> bool:
+        """Whether the run was asked to stop (polled by in-process evaluators between items)."""
+        return self.should_stop is not None and os.getpid() == self.owner and bool(self.should_stop())
 
     def __call__(self, genome: GenomeT) -> float:
+        if self.stopping():
+            raise KeyboardInterrupt
         c = _clean_cost(self.problem.cost(genome))
         if self.sink is not None and os.getpid() == self.owner:
             self.sink[genome] = c
         return c
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"problem": self.problem, "sink": None, "owner": self.owner}
+        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None}
 
 
 class GeneticAlgorithm:
@@ -107,7 +125,7 @@ class GeneticAlgorithm:
     """
 
     def __init__(self, problem: Problem, config: GAConfig | None = None, seed: int | None = None,
-                 evaluator: Evaluator | None = None) -> None:
+                 evaluator: Evaluator | None = None, tag: str | None = None) -> None:
         missing = [m for m in ("random_gene", "repair", "cost", "perturb") if not callable(getattr(problem, m, None))]
         if missing:
             raise ConfigError(f"{type(problem).__name__} is not a GA problem: it lacks {', '.join(missing)}")
@@ -120,6 +138,7 @@ class GeneticAlgorithm:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ConfigError(f"seed must be a non-negative integer, not {seed!r}")
         self.seed = int(seed)
+        self.tag = tag
         self.problem = problem
         self.evaluator: Evaluator = serial_evaluator if evaluator is None else evaluator
         self.memo: dict[GenomeT, float] = {}
@@ -154,16 +173,28 @@ class GeneticAlgorithm:
         """Overall progress in [0, 1]; never decreases."""
         return self._progress
 
-    def run(self, on_generation: Callable[[GenerationReport], None] | None = None) -> RunResult:
+    def run(self, on_generation: Callable[[GenerationReport], None] | None = None,
+            should_stop: Callable[[], bool] | None = None,
+            checkpoint: str | os.PathLike[str] | None = None) -> RunResult:
         """Evolve until a stopping criterion holds or Ctrl-C; call ``on_generation`` after each generation.
 
-        Ctrl-C returns the best genome so far with ``interrupted=True``; costs of an unfinished batch count
-        when computed in this process (an out-of-process evaluator loses them). A second call continues the
-        same run (after an interrupt, or after :meth:`resume` with a longer config); a finished run returns
-        at once.
+        Ctrl-C, or ``should_stop()`` turning true (polled before every in-process evaluation and between
+        generations), returns the best genome so far with ``interrupted=True``; costs of an unfinished
+        batch count when computed in this process (an out-of-process evaluator loses them). With
+        ``checkpoint``, the state after every completed generation is saved there (atomically), so that
+        :meth:`resume` continues exactly. A second call continues the same run (after an interrupt, or after
+        :meth:`resume` with a longer config); a finished run returns at once.
         """
         self._clock = time.perf_counter()
+        self._cost_fn.should_stop = should_stop
         interrupted = False
+        if checkpoint is not None:
+            inner = on_generation
+
+            def on_generation(report: GenerationReport) -> None:
+                self.checkpoint(checkpoint)
+                if inner is not None:
+                    inner(report)
         try:
             if self.generation < 0:
                 self._first_generation()
@@ -171,6 +202,8 @@ class GeneticAlgorithm:
             else:
                 self._stop = termination.stop_reason(self.config, self._state())
             while self._stop is None:
+                if self._cost_fn.stopping():
+                    raise KeyboardInterrupt
                 self._next_generation()
                 self._finish_generation(on_generation)
         except KeyboardInterrupt:
@@ -179,6 +212,7 @@ class GeneticAlgorithm:
         finally:
             self._seconds = self._elapsed()
             self._clock = None
+            self._cost_fn.should_stop = None
         best_genome, best_cost = self.best
         return RunResult(best_genome=best_genome, best_cost=best_cost, history=list(self.history),
                          generations=max(self.generation, 0), evaluations=self.evaluations,
@@ -193,19 +227,26 @@ class GeneticAlgorithm:
             "costs": self.costs.tolist(), "memo": self.memo, "history": self.history,
             "generation": self.generation, "best": self._best, "first_best": self._first_best,
             "last_best": self._last_best, "stalled": self._stalled, "seconds": self._elapsed(),
-            "progress": self._progress,
+            "progress": self._progress, "tag": self.tag,
         }
         return write_bytes(path, pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL))
 
     @classmethod
     def resume(cls, path: str | os.PathLike[str], problem: Problem, evaluator: Evaluator | None = None,
-               config: GAConfig | None = None) -> GeneticAlgorithm:
+               config: GAConfig | None = None, tag: str | None = None) -> GeneticAlgorithm:
         """Rebuild a run from :meth:`checkpoint` (trusted files only: it is a pickle); ``run()`` continues it
-        exactly. ``config`` may replace the saved one, e.g. to allow more generations."""
+        exactly (same RNG state, population, memo and counters: the same genomes as an uninterrupted run).
+        ``config`` may replace the saved one, e.g. to allow more generations. A ``tag`` (e.g. a fingerprint of
+        the target and settings) must match the one the checkpoint was written with."""
         try:
+            st = os.stat(path)
+            if not stat.S_ISREG(st.st_mode):
+                raise InputError(f"checkpoint {path} is not a regular file")
             data = pickle.loads(Path(path).read_bytes())
         except OSError as exc:
             raise InputError(f"cannot read checkpoint {path}: {exc.strerror or exc}") from None
+        except InputError:
+            raise
         except Exception:
             raise InputError(f"{path} is not a gsr_cad GA checkpoint") from None
         if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
@@ -213,20 +254,25 @@ class GeneticAlgorithm:
         if data.get("version") != CHECKPOINT_VERSION:
             raise InputError(f"checkpoint {path} has version {data.get('version')!r}; "
                              f"this gsr_cad reads version {CHECKPOINT_VERSION}")
-        ga = cls(problem, config if config is not None else GAConfig.from_dict(data["config"]),
-                 seed=data["seed"], evaluator=evaluator)
-        ga._rng.bit_generator.state = data["rng"]
-        ga.population = list(data["population"])
-        ga.costs = np.asarray(data["costs"], dtype=float)
-        ga.memo.update(data["memo"])
-        ga.history = list(data["history"])
-        ga.generation = data["generation"]
-        ga._best = data["best"]
-        ga._first_best = data["first_best"]
-        ga._last_best = data["last_best"]
-        ga._stalled = data["stalled"]
-        ga._seconds = data["seconds"]
-        ga._progress = data["progress"]
+        if tag is not None and data.get("tag") != tag:
+            raise InputError(f"checkpoint {path} belongs to another run (a different target, settings or seed)")
+        try:
+            ga = cls(problem, config if config is not None else GAConfig.from_dict(data["config"]),
+                     seed=data["seed"], evaluator=evaluator, tag=data.get("tag"))
+            ga._rng.bit_generator.state = data["rng"]
+            ga.population = list(data["population"])
+            ga.costs = np.asarray(data["costs"], dtype=float)
+            ga.memo.update(data["memo"])
+            ga.history = list(data["history"])
+            ga.generation = data["generation"]
+            ga._best = data["best"]
+            ga._first_best = data["first_best"]
+            ga._last_best = data["last_best"]
+            ga._stalled = data["stalled"]
+            ga._seconds = data["seconds"]
+            ga._progress = data["progress"]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"checkpoint {path} is damaged ({type(exc).__name__}: {exc})") from None
         return ga
 
     # ------------------------------------------------------------------ generations
@@ -364,3 +410,11 @@ class GeneticAlgorithm:
         return termination.RunState(generation=max(self.generation, 0), best_cost=self.best[1],
                                     first_best_cost=self._first_best, seconds=self._elapsed(),
                                     stalled_generations=self._stalled)
+
+
+def start_or_resume(problem: Problem, config: GAConfig, seed: int | None = None, evaluator: Evaluator | None = None,
+                    checkpoint: str | os.PathLike[str] | None = None, tag: str | None = None) -> GeneticAlgorithm:
+    """A new run, or (when the ``checkpoint`` file exists) the run saved there, continued under ``config``."""
+    if checkpoint is not None and os.path.lexists(checkpoint):
+        return GeneticAlgorithm.resume(checkpoint, problem, evaluator=evaluator, config=config, tag=tag)
+    return GeneticAlgorithm(problem, config, seed=seed, evaluator=evaluator, tag=tag)

@@ -37,8 +37,18 @@ def _install_worker(fn: Callable[[Any], Any]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _call_worker_fn(item: Any) -> Any:
-    return _WORKER_FN(item)
+def _call_worker_chunk(items: Sequence[Any]) -> list:
+    return [_WORKER_FN(x) for x in items]
+
+
+POLL_SECONDS = 0.1
+"""How often an out-of-process evaluator checks whether the run was asked to stop."""
+
+
+def _stopping(fn: Callable[[Any], Any]) -> bool:
+    """Whether ``fn`` (the engine's cost wrapper) says the run was asked to stop."""
+    check = getattr(fn, "stopping", None)
+    return bool(check()) if callable(check) else False
 
 
 class ProcessPoolEvaluator:
@@ -74,9 +84,15 @@ class ProcessPoolEvaluator:
                 initializer=_install_worker, initargs=(fn,))
             self._fn = fn
             self._finalizer = weakref.finalize(self, self._pool.shutdown, wait=False, cancel_futures=True)
-        chunksize = max(1, math.ceil(len(items) / (self.max_workers * self.chunks_per_worker)))
+        size = max(1, math.ceil(len(items) / (self.max_workers * self.chunks_per_worker)))
         try:
-            return list(self._pool.map(_call_worker_fn, items, chunksize=chunksize))
+            futures = [self._pool.submit(_call_worker_chunk, items[i:i + size]) for i in range(0, len(items), size)]
+            pending = set(futures)
+            while pending:
+                if _stopping(fn):
+                    raise KeyboardInterrupt
+                _, pending = concurrent.futures.wait(pending, timeout=POLL_SECONDS)
+            return [r for f in futures for r in f.result()]
         except BaseException:
             self.close(wait=False)
             raise
@@ -114,8 +130,19 @@ class DaskEvaluator:
         items = list(items)
         if not items:
             return []
+        from dask import distributed
+
         futures = self.client.map(fn, items, pure=False)
         try:
+            pending = list(futures)
+            while pending:
+                if _stopping(fn):
+                    raise KeyboardInterrupt
+                try:
+                    distributed.wait(pending, timeout=POLL_SECONDS)
+                except (TimeoutError, distributed.TimeoutError):
+                    pass
+                pending = [f for f in pending if not f.done()]
             return list(self.client.gather(futures))
         except BaseException:
             self.client.cancel(futures)

@@ -59,9 +59,10 @@ def _candidates(mesh: PolyMesh, kinds: str, scale: float) -> Iterator[MeshOp]:
 
 
 def skeletons(template: PolyMesh, goal: PolyMesh, kinds: str = STRUCTURAL, max_ops: int = 3,
-              budget: int = 6000) -> Iterator[tuple[MeshOp, ...]]:
+              budget: int = 6000, should_stop: Callable[[], bool] | None = None) -> Iterator[tuple[MeshOp, ...]]:
     """Sequences of at most ``max_ops`` structural ops (letters ``kinds``) that build, from ``template``, a
-    mesh with ``goal``'s connectivity (nominal parameters; at most ``budget`` op applications)."""
+    mesh with ``goal``'s connectivity (nominal parameters; at most ``budget`` op applications; the
+    enumeration ends early once ``should_stop()`` is true)."""
     kinds = "".join(k for k in kinds if k in STRUCTURAL)
     want = connectivity_hash(goal)
     scale = template.diagonal
@@ -73,7 +74,7 @@ def skeletons(template: PolyMesh, goal: PolyMesh, kinds: str = STRUCTURAL, max_o
         for ops, state in frontier:
             for op in _candidates(state, kinds, scale):
                 spent += 1
-                if spent > budget:
+                if spent > budget or (should_stop is not None and should_stop()):
                     return
                 try:
                     mesh = op.apply(state)
@@ -166,7 +167,8 @@ def _fitted(template: PolyMesh, skeleton: Sequence[MeshOp], goal: PolyMesh, phi:
 
 def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: float | Sequence[float] = EXACT,
                      accept: Callable[[tuple[MeshOp, ...]], bool] | None = None, kinds: str = STRUCTURAL,
-                     max_ops: int = 3, max_isomorphisms: int = 48, budget: int = 6000) -> tuple[MeshOp, ...]:
+                     max_ops: int = 3, max_isomorphisms: int = 48, budget: int = 6000,
+                     should_stop: Callable[[], bool] | None = None) -> tuple[MeshOp, ...]:
     """The shortest history found that builds ``genome``'s control mesh from ``template`` (see the module
     doc), or ``genome`` itself when none is shorter.
 
@@ -175,8 +177,12 @@ def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: fl
     can veto a history; with several tolerances, the loosest is tried first (fewest moves), then tighter
     ones for a still shorter history (their fits may pass ``accept`` where a looser one's did not).
     ``kinds`` limits the structural ops tried; genomes with more than ``max_ops`` structural ops are
-    returned as they are.
+    returned as they are. Once ``should_stop()`` is true (polled between steps) the shortest history
+    found so far is returned.
     """
+    def stopping() -> bool:
+        return should_stop is not None and bool(should_stop())
+
     genome = tuple(genome)
     n_struct = sum(op.letter in STRUCTURAL for op in genome)
     if n_struct == 0 or n_struct > max_ops:
@@ -186,8 +192,9 @@ def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: fl
     except OpError:
         return genome
     tolerances = sorted({max(float(t), EXACT) for t in np.atleast_1d(tolerance)}, reverse=True)
-    found = [(skeleton, phi) for skeleton in skeletons(template, goal, kinds, n_struct, budget)
-             for phi in isomorphisms(replay(template, skeleton), goal, max_isomorphisms)]
+    found = []
+    for skeleton in skeletons(template, goal, kinds, n_struct, budget, should_stop):
+        found += [(skeleton, phi) for phi in isomorphisms(replay(template, skeleton), goal, max_isomorphisms)]
     best = genome
     prefixes: dict = {}
     for rel in tolerances:  # loosest first (fewest moves); a tighter one serves when ``accept`` vetoes it
@@ -199,7 +206,7 @@ def simplify_history(template: PolyMesh, genome: Sequence[MeshOp], tolerance: fl
         tries.sort(key=lambda t: t[:2])
         cap = len(best) - 1  # the most ops a history may have
         for least, _, skeleton, phi in tries:
-            if least > cap:
+            if least > cap or stopping():
                 break
             fitted = _fitted(template, skeleton, goal, phi, tol, prefixes)
             if fitted is None or len(fitted[0]) > cap:

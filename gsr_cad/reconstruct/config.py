@@ -19,6 +19,36 @@ from ..errors import ConfigError
 PRESETS = ("default", "paper")
 _ConfigT = TypeVar("_ConfigT", "CurveConfig", "SurfaceConfig")
 
+UNITS: dict[str, str] = {"model": "model units", "mm": "mm", "cm": "cm", "m": "m", "in": "in", "ft": "ft"}
+"""What ``units`` may name, and how a length in it is written (a label only: nothing is rescaled)."""
+
+OP_KINDS: dict[str, str] = {
+    "V": "vertex translate", "E": "face extrude", "L": "edge loop", "B": "edge bevel", "I": "face inset",
+    "F": "face translate", "S": "scale",
+}
+"""The surface op letters ``op_kinds`` may hold, with what each does (the help text lists them from here)."""
+
+UNITS_HELP = ("Unit of the target's coordinates, used to label every length in the summary, report.html, "
+              "report.png and result.json (nothing is rescaled); 'model': plain model units.")
+
+
+_GA_HELP = {
+    "mutation_rate": "Probability, in [0, 1], that an op of a child is mutated.",
+    "delete_rate": "Probability, in [0, 1], that an op chosen for mutation is deleted rather than replaced.",
+    "append_rate": "Probability, in [0, 1], that a child gets one random op appended.",
+    "generations": "Most generations the search runs.",
+    "stall_generations": "Stop after this many generations without improvement; 0: never.",
+    "max_seconds": "Stop the search after this many seconds of wall-clock time; 0: no limit.",
+}
+"""Help of the GA settings both configs share."""
+
+
+def _field(default: Any, help: str, *, length: bool = False, **metadata: Any) -> Any:
+    """A config field with its help sentence; ``length``: a distance, given on the CLI in model units or as
+    ``N%`` of the target's bounding-box diagonal, held here as a fraction of that diagonal. Further
+    ``metadata`` for the CLI: ``choices`` (allowed values), ``letters`` (letter -> meaning)."""
+    return dataclasses.field(default=default, metadata={"help": help, "length": length, **metadata})
+
 
 def _flag(field: str) -> str:
     return field.replace("_", "-")
@@ -53,6 +83,10 @@ def _preset(cls: type[_ConfigT], kind: str, name: str, paper: dict[str, Any], ov
     return cls(**base).validated()
 
 
+def _check_units(config: Any) -> None:
+    _check(config, ("units",), UNITS.__contains__, f"be one of {', '.join(UNITS)}")
+
+
 def _check(config: Any, fields: tuple[str, ...], ok: Callable[[Any], bool], requirement: str) -> None:
     """ConfigError naming the first of ``fields`` whose value is not ``ok`` (it "must ``requirement``")."""
     for field in fields:
@@ -61,43 +95,109 @@ def _check(config: Any, fields: tuple[str, ...], ok: Callable[[Any], bool], requ
             raise ConfigError(f"{_flag(field)} must {requirement}, not {value!r}")
 
 
+def _ranges(config: Any, limits: dict[str, tuple[float, float]]) -> None:
+    """ConfigError naming the first field outside its allowed range ``[low, high]`` (stated in the message)."""
+    for field, (low, high) in limits.items():
+        value = getattr(config, field)
+        if value is not None and _real(value) and not low <= value <= high:
+            raise ConfigError(f"{_flag(field)} must lie in [{low:g}, {high:g}], not {value!r}")
+
+
+_RUN_LIMITS = {"population": (2, 10_000), "initial_population": (1, 100_000), "min_initial_ops": (1, 50),
+               "max_initial_ops": (1, 50), "min_ops": (1, 50), "generations": (1, 1_000_000),
+               "stall_generations": (0, 1_000_000), "max_seconds": (0, 2_592_000)}
+"""Allowed ranges of the GA settings shared by curves and surfaces (max-seconds: 30 days)."""
+CURVE_LIMITS = {**_RUN_LIMITS, "tolerance": (0, 1), "max_distance": (0, 1), "bounds_margin": (0, 100),
+                "move_scale": (0, 10), "max_control_points": (0, 10_000), "fit_iterations": (1, 10_000),
+                "threshold": (-1e300, 1e300)}
+"""Allowed range of each numeric curve setting (distances are fractions of the target's diagonal)."""
+SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10),
+                  "face_move_range": (0, 10), "perturb_rel": (0, 1), "max_scale_factor": (1, 100),
+                  "max_control_faces": (1, 100_000), "max_target_points": (0, 20_000_000),
+                  "polish_rounds": (0, 1000), "final_polish_rounds": (0, 1000), "polish_every": (0, 1_000_000),
+                  "polish_niches": (1, 100), "polish_damping": (0, 1000), "history_tolerance": (0, 1),
+                  "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
+                  "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000)}
+"""Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class CurveConfig:
     """All settings of a curve reconstruction (see the module docstring for the presets)."""
 
-    scheme: Literal["bspline", "chaikin"] = "bspline"
-    fitness: Literal["geometric", "index"] = "geometric"
-    polish: bool = True
-    tolerance: float = 1e-5
-    max_distance: float | None = None
-    bounds_margin: float = 1.0
-    local_add: bool = True
-    p_add: float = 0.5
-    move_scale: float = 0.25
-    max_control_points: int = 0
-    fit_iterations: int = 25
-    initial_population: int = 1000
-    population: int = 100
-    min_initial_ops: int = 4
-    max_initial_ops: int = 8
-    min_ops: int = 3
-    elite_fraction: float = 0.2
-    mutation_rate: float = 0.05
-    delete_rate: float = 0.01
-    append_rate: float = 0.05
-    generations: int = 100
-    threshold: float = 0.0
-    stall_generations: int = 15
-    max_seconds: float = 0.0
-    closure: Literal["auto", "closed", "open"] = dataclasses.field(default="auto", metadata={
-        "help": "closed (periodic) or open curve; auto: closed when the last point is about one sample spacing "
-                "from the first"})
-    find_corners: bool = dataclasses.field(default=True, metadata={
-        "help": "propose C0 corners (knot multiplicity = degree) at sharp turns of the data; off: smooth curves only"})
-    corner_angle: float = dataclasses.field(default=25.0, metadata={
-        "help": "smallest turning angle, in degrees, of a data point proposed as a corner"})
-    search_points: int = dataclasses.field(default=3000, metadata={
-        "help": "the search fits at most about this many of the points (metrics use all of them); 0: all points"})
+    scheme: Literal["bspline", "chaikin"] = _field(
+        "bspline",
+        "How the control polygon becomes a curve: 'bspline' a clamped uniform cubic B-spline, 'chaikin' Chaikin "
+        "corner cutting (its quadratic B-spline limit).")
+    fitness: Literal["geometric", "index"] = _field(
+        "geometric",
+        "How a curve is scored: 'geometric' each target point's distance to its nearest curve point, 'index' the "
+        "i-th point's distance to the i-th of as many evenly spaced curve samples (the paper's).")
+    polish: bool = _field(
+        True,
+        "Score each genome after a least-squares placement of its control points; off: score the genome's own "
+        "positions (the paper's).")
+    tolerance: float = _field(
+        1e-5,
+        "RMS distance to the target below which more control points bring nothing (the cost's error floor); 0: "
+        "none, every point that lowers the error counts.", length=True)
+    max_distance: float | None = _field(
+        None,
+        "CAD tolerance: the largest distance of any target point to the curve that the result must meet (missed: "
+        "a warning and exit code 3); none: no maximum.", length=True)
+    bounds_margin: float = _field(
+        1.0,
+        "Margin of the box the control points must stay in, in target bounding-box diagonals added on every side;"
+        " 0: the target's own bounding box.")
+    local_add: bool = _field(
+        True,
+        "Insert new control points near their neighbours (Gaussian); off: anywhere in the box (the paper's).")
+    p_add: float = _field(
+        0.5,
+        "Probability, in [0, 1], that a random op inserts a control point rather than moves one.")
+    move_scale: float = _field(
+        0.25,
+        "Largest random move of a control point per axis, as a fraction of the box size; 0: points never move.")
+    max_control_points: int = _field(
+        0,
+        "Most control points a curve may have; 0: no cap (a segment between corners gets at most two thirds of "
+        "its points).")
+    fit_iterations: int = _field(
+        25,
+        "Foot-point iterations of each least-squares placement (more: slower, slightly tighter).")
+    initial_population: int = _field(1000, "Random genomes drawn in generation 0, before the cut to --population.")
+    population: int = _field(100, "Genomes kept from one generation to the next.")
+    min_initial_ops: int = _field(4, "Fewest ops in a random initial genome.")
+    max_initial_ops: int = _field(8, "Most ops in a random initial genome.")
+    min_ops: int = _field(3, "Fewest ops a genome may have (shorter ones are repaired).")
+    elite_fraction: float = _field(
+        0.2,
+        "Fraction, in (0, 1), of the best genomes copied unchanged into the next generation.")
+    mutation_rate: float = _field(0.05, _GA_HELP["mutation_rate"])
+    delete_rate: float = _field(0.01, _GA_HELP["delete_rate"])
+    append_rate: float = _field(0.05, _GA_HELP["append_rate"])
+    generations: int = _field(100, _GA_HELP["generations"])
+    threshold: float = _field(
+        0.0,
+        "Stop once the best fitness (the cost, see fitness_kind in result.json) is at or below this; 0: no threshold; "
+        "negative: 1e-4 of the diagonal per target point (the paper's rule, used without polish).")
+    stall_generations: int = _field(15, _GA_HELP["stall_generations"])
+    max_seconds: float = _field(0.0, _GA_HELP["max_seconds"])
+    units: str = _field("model", UNITS_HELP, choices=tuple(UNITS))
+    closure: Literal["auto", "closed", "open"] = _field(
+        "auto",
+        "Closed (periodic, no seam) or open curve; auto: closed when the last point is within about three sample "
+        "spacings of the first (--closed / --open on the command line).")
+    find_corners: bool = _field(
+        True,
+        "Propose C0 corners (a knot of multiplicity = degree: the curve passes through that control point) at sharp "
+        "turns of the data; off: smooth curves only.")
+    corner_angle: float = _field(
+        25.0, "Smallest turning angle, in degrees, of a data point proposed as a corner.")
+    search_points: int = _field(
+        3000,
+        "The search fits at most about this many of the points (metrics and the tolerance check use all of them); "
+        "0: all points.")
 
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
@@ -140,6 +240,8 @@ class CurveConfig:
             raise ConfigError(f"corner-angle must lie in (0, 180) degrees, not {self.corner_angle!r}")
         if not (isinstance(self.search_points, int) and (self.search_points == 0 or self.search_points >= 100)):
             raise ConfigError(f"search-points must be 0 or at least 100, not {self.search_points!r}")
+        _check_units(self)
+        _ranges(self, CURVE_LIMITS)
         return self
 
     def to_json(self) -> dict[str, Any]:
@@ -171,44 +273,89 @@ class SurfaceConfig:
     :mod:`gsr_cad.ops.rewrite`) if that raises its distance to the target by at most ``history_tolerance``.
     """
 
-    template_fit: Literal["box", "cube"] = "box"
-    levels: int = 2
-    boundary: Literal["all", "corners"] = "all"
-    fitness: Literal["surface", "mixed"] = "surface"
-    op_kinds: str = "VELBIFS"
-    move_range: float = 0.1
-    extrude_range: float = 0.5
-    inward_rate: float = 0.2
-    face_move_range: float = 0.1
-    max_scale_factor: float = 1.25
-    perturb_rel: float = 0.02
-    max_control_faces: int = 120
-    max_target_points: int = 3000
-    polish_rounds: int = 6
-    polish_gain: float = 0.7
-    final_polish_rounds: int = 20
-    polish_every: int = 1
-    polish_niches: int = 3
-    polish_damping: float = 1e-3
-    simplify_history: bool = True
-    history_tolerance: float = 1e-6
-    population: int = 100
-    initial_population: int = 100
-    min_initial_ops: int = 1
-    max_initial_ops: int = 2
-    min_ops: int = 1
-    n_parents: int = 20
-    max_children: int = 10
-    n_perturb: int = 10
-    n_newcomers: int = 10
-    max_duplicates: int = 3
-    mutation_rate: float = 0.05
-    delete_rate: float = 0.01
-    append_rate: float = 0.1
-    generations: int = 200
-    threshold: float = 1e-5
-    stall_generations: int = 0
-    max_seconds: float = 0.0
+    template_fit: Literal["box", "cube"] = _field(
+        "box",
+        "How the default cube template is fitted to the target's bounding box: 'box' scaled per axis, 'cube' "
+        "scaled uniformly (the paper's).")
+    levels: int = _field(
+        2,
+        "Catmull-Clark subdivision levels of the limit mesh compared with the target (1 to 4; each level "
+        "quadruples the faces).")
+    boundary: Literal["all", "corners"] = _field(
+        "all",
+        "Boundary rule of the subdivision: 'all' smooths boundary corners too (Blender's default), 'corners' "
+        "keeps them fixed.")
+    fitness: Literal["surface", "mixed"] = _field(
+        "surface",
+        "What the search minimises: 'surface' the symmetric point-to-surface distance, 'mixed' the paper's mixed "
+        "mean distance (both over the diagonal).")
+    op_kinds: str = _field("VELBIFS", "Modelling ops the search may use, one letter each:", letters=OP_KINDS)
+    move_range: float = _field(
+        0.1,
+        "Largest random vertex move (V) per axis, as a fraction of the target's bounding-box diagonal.")
+    extrude_range: float = _field(
+        0.5,
+        "Largest random extrusion (E), as a fraction of the target's bounding-box diagonal.")
+    inward_rate: float = _field(
+        0.2,
+        "Probability, in [0, 1], that a random extrusion goes into the mesh (a pocket); 0: outwards only (the "
+        "paper's).")
+    face_move_range: float = _field(
+        0.1,
+        "Largest random face move (F) along its normal, as a fraction of the target's bounding-box diagonal.")
+    max_scale_factor: float = _field(
+        1.25,
+        "Largest random scale (S) factor (and its inverse the smallest); 1: no scaling.")
+    perturb_rel: float = _field(
+        0.02,
+        "Size of the nudge a perturbed op's parameters get, as a fraction of the target's bounding-box diagonal.")
+    max_control_faces: int = _field(120, "Most faces a control mesh may have (larger genomes are repaired).")
+    max_target_points: int = _field(
+        3000,
+        "Most target points scored during the search (a fixed random subset of larger targets); 0: all.")
+    polish_rounds: int = _field(
+        6,
+        "Least-squares rounds on the control vertices before each genome is scored; 0: no polish (the paper's).")
+    polish_gain: float = _field(
+        0.7,
+        "Stop polishing once a round shrinks the error by less than this factor, in (0, 1].")
+    final_polish_rounds: int = _field(
+        20,
+        "Least-squares rounds on the winner's control vertices after the search; 0: none.")
+    polish_every: int = _field(
+        1,
+        "Write the polish back into the best genomes every this many generations; 0: never.")
+    polish_niches: int = _field(3, "How many of the best connectivities get their best genome polished back.")
+    polish_damping: float = _field(
+        1e-3,
+        "Pull of each polish round towards the current positions (relative to the system's scale); 0: none.")
+    simplify_history: bool = _field(
+        True,
+        "Rewrite the winner's history into the shortest equivalent one found; off: keep it as searched.")
+    history_tolerance: float = _field(
+        1e-6,
+        "How much the history rewrite may raise the distance to the target; 0: only exact rewrites.", length=True)
+    population: int = _field(100, "Individuals kept from one generation to the next.")
+    initial_population: int = _field(100, "Random genomes drawn in generation 0.")
+    min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")
+    max_initial_ops: int = _field(2, "Most ops in a random initial genome (and in a newcomer).")
+    min_ops: int = _field(1, "Fewest ops a genome may have.")
+    n_parents: int = _field(20, "Parents chosen for crossover each generation.")
+    max_children: int = _field(10, "Most children of one pair of parents.")
+    n_perturb: int = _field(10, "Best individuals whose parameters are perturbed each generation; 0: none.")
+    n_newcomers: int = _field(10, "Random newcomers added each generation; 0: none.")
+    max_duplicates: int = _field(3, "Most copies of one genome kept in the population.")
+    mutation_rate: float = _field(0.05, _GA_HELP["mutation_rate"])
+    delete_rate: float = _field(0.01, _GA_HELP["delete_rate"])
+    append_rate: float = _field(0.1, _GA_HELP["append_rate"])
+    generations: int = _field(200, _GA_HELP["generations"])
+    threshold: float = _field(
+        1e-5,
+        "Stop once the best fitness (a distance over the diagonal, see --fitness) is at or below this; 0: only on"
+        " a perfect fit.")
+    stall_generations: int = _field(0, _GA_HELP["stall_generations"])
+    max_seconds: float = _field(0.0, _GA_HELP["max_seconds"])
+    units: str = _field("model", UNITS_HELP, choices=tuple(UNITS))
 
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> SurfaceConfig:
@@ -223,8 +370,8 @@ class SurfaceConfig:
         for field, allowed in choices.items():
             _check(self, (field,), allowed.__contains__, f"be one of {', '.join(allowed)}")
         kinds = self.op_kinds
-        if not isinstance(kinds, str) or not kinds or set(kinds) - set("VELBIFS") or len(set(kinds)) != len(kinds):
-            raise ConfigError(f"op-kinds must be distinct letters from VELBIFS, not {kinds!r}")
+        if not isinstance(kinds, str) or not kinds or set(kinds) - set(OP_KINDS) or len(set(kinds)) != len(kinds):
+            raise ConfigError(f"op-kinds must be distinct letters from {''.join(OP_KINDS)}, not {kinds!r}")
         _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
@@ -246,6 +393,8 @@ class SurfaceConfig:
         _check(self, ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
                       "max_seconds", "history_tolerance"), _finite_non_negative, "be a finite number >= 0")
         _check(self, ("max_scale_factor",), lambda v: _finite_non_negative(v) and v >= 1.0, "be a finite number >= 1")
+        _check_units(self)
+        _ranges(self, SURFACE_LIMITS)
         return self
 
     def to_json(self) -> dict[str, Any]:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 import warnings
 from collections.abc import Callable
@@ -34,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from .. import genome as genome_mod
 from ..errors import OpError
-from ..ga import GAConfig, GeneticAlgorithm, GenerationReport, RunResult
+from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
 from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
 from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_spline, two_sided
@@ -339,19 +340,24 @@ class CurveProblem:
         return None
 
     # --- the winner --------------------------------------------------------------------------------
-    def final(self, genome: tuple) -> tuple[np.ndarray, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    def final(self, genome: tuple, hurry: bool = False
+              ) -> tuple[np.ndarray, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
         """Refined control points, their corners, and the structure (search corners, counts) of the winner.
 
         With a limit and a subsampled search, segments that miss it on all points get more control points
-        (up to four rounds)."""
+        (up to four rounds). ``hurry``: the search's placement as it is (no refinement, no check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
-        if counts is None:
+        if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
             self.model.upto = None
-            corners, counts = (), self.model.allocation((), max(n, self.model.minimum_total(()) or n))
-        ctrl, idx = self.model.assemble(corners, counts, refine=True)
+            low = self.model.minimum_total(corners)
+            counts = self.model.allocation(corners, low) if low is not None else None
+            if counts is None:
+                corners = ()
+                counts = self.model.allocation((), self.model.minimum_total(()))
+        ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
         full = self.prepared.points
-        if self.config.max_distance is None:
+        if self.config.max_distance is None or hurry:
             return ctrl, idx, corners, counts
         keys = self.model.segments(corners)
         tree = cKDTree(full)
@@ -447,7 +453,8 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
 def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | None = None, preset: str = "default",
                       seed: int | None = None, config: CurveConfig | None = None,
                       progress: Callable[[GenerationReport], None] | None = None,
-                      evaluator: Callable | None = None, **overrides: Any) -> Result:
+                      evaluator: Callable | None = None, should_stop: Callable[[], bool] | None = None,
+                      checkpoint: str | os.PathLike[str] | None = None, **overrides: Any) -> Result:
     """Reconstruct a B-spline (or Chaikin) control polygon - open or closed, with corners - and its op history.
 
     ``points``: an ``(n, 2)`` or ``(n, 3)`` array of ordered points, a path to a CSV/TXT/NPY file or a
@@ -456,7 +463,9 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     indices with knot multiplicity = degree); :func:`gsr_cad.geometry.bspline.clamped_form` turns them into
     an exact clamped knot vector. ``metrics["tolerance_met"]`` says whether ``max_distance`` was met both
     ways on all points (a :class:`CurveWarning` is issued when not). Ctrl-C during the search keeps the best
-    genome found so far (``result.interrupted``). Raises :class:`~gsr_cad.errors.InputError` /
+    genome found so far (``result.interrupted``), as does ``should_stop()`` turning true (the final refinement
+    and check are then skipped). With ``checkpoint`` the search state is saved there every generation and, if
+    that file exists, the run continues from it (same seed, same result as an uninterrupted run). Raises :class:`~gsr_cad.errors.InputError` /
     ``ConfigError`` on bad input (including points that are not in curve order and cannot be ordered).
     """
     started = time.perf_counter()
@@ -466,14 +475,16 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     config = (CurveConfig.preset(preset, **overrides) if config is None
               else dataclasses.replace(config, **overrides).validated())
     problem = CurveProblem(target, config)
-    engine = GeneticAlgorithm(problem, _ga_config(config, problem), seed=seed, evaluator=evaluator)
-    run: RunResult = engine.run(on_generation=progress)
+    tag = fingerprint("curve", target.points, config.to_json(), preset, seed)
+    engine = start_or_resume(problem, _ga_config(config, problem), seed, evaluator, checkpoint, tag)
+    run: RunResult = engine.run(on_generation=progress, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
+    hurry = should_stop is not None and should_stop()
     corners: tuple[int, ...] = ()
     template = problem.template
     data_corners = problem.prepared.candidates if config.polish else None
     if config.polish:
-        fitted, corners, _, _ = problem.final(best)
+        fitted, corners, _, _ = problem.final(best, hurry)
         template = problem.result_template(fitted)
         final = problem.history(fitted, corners, template)
     else:

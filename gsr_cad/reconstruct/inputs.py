@@ -7,15 +7,158 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import io
+import json
 import os
+import stat
+import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import InputError
+from ..errors import GsrWarning, InputError
 
 CURVE_SUFFIXES = (".csv", ".txt", ".xy", ".npy")
+MAX_INPUT_BYTES = 1 << 30
+"""Largest input file read (1 GiB): enough for 10^7 text points; anything bigger is refused before reading."""
+MAX_POINTS = 20_000_000
+"""Most points a target may have."""
+MAX_COORDINATE = 1e50
+"""Largest coordinate magnitude accepted: areas squared (fourth powers) of larger ones overflow doubles."""
+MIN_EXTENT = 1e-50
+"""Smallest extent of a target (fourth powers of smaller ones underflow)."""
+MIN_RELATIVE_EXTENT = 1e-12
+"""Smallest extent relative to the largest coordinate (below, the points differ only in rounding)."""
+MAX_JSON_BYTES = 256 << 20
+"""Largest JSON document read (256 MiB)."""
+MAX_JSON_INT_DIGITS = 30
+"""Longest integer literal accepted in a JSON document."""
+UTF8_BOM = b"\xef\xbb\xbf"
+
+
+def _size(n: int) -> str:
+    return f"{n / (1 << 20):.0f} MiB" if n >= 1 << 20 else f"{n} bytes"
+
+
+def open_input(path: str | os.PathLike[str], what: str = "file", limit: int = MAX_INPUT_BYTES,
+               label: str | None = None) -> int:
+    """Check that ``path`` is a readable, non-empty regular file of at most ``limit`` bytes; returns its size.
+
+    FIFOs, devices, sockets and directories are refused (reading them could block or never end). Messages
+    start with ``label`` (default: the path).
+    """
+    if os.fspath(path) == "":
+        raise InputError(f"empty {what} name")
+    p = Path(path)
+    name = str(p) if label is None else label
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{name}: cannot read: is a directory, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{name}: cannot read: not a regular file (a device, FIFO or socket cannot be a {what})")
+    if st.st_size == 0:
+        raise InputError(f"{name}: file is empty")
+    if st.st_size > limit:
+        raise InputError(f"{name}: file is {_size(st.st_size)}; the limit for a {what} is {_size(limit)}")
+    if not os.access(p, os.R_OK):
+        raise InputError(f"{name}: cannot read (permission denied)")
+    return int(st.st_size)
+
+
+def read_input(path: str | os.PathLike[str], what: str = "file", limit: int = MAX_INPUT_BYTES,
+               label: str | None = None) -> bytes:
+    """The bytes of a regular input file (at most ``limit``; see :func:`open_input`), without a UTF-8 BOM."""
+    open_input(path, what, limit, label)
+    name = str(path) if label is None else label
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    if len(data) > limit:
+        raise InputError(f"{name}: file grew beyond the limit for a {what} ({_size(limit)})")
+    return data[len(UTF8_BOM):] if data.startswith(UTF8_BOM) else data
+
+
+def _json_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_JSON_INT_DIGITS:
+        raise ValueError(f"an integer of {len(text)} digits (at most {MAX_JSON_INT_DIGITS} are accepted)")
+    return int(text)
+
+
+def _json_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number")
+
+
+def read_json(path: str | os.PathLike[str], what: str = "JSON file", limit: int = MAX_JSON_BYTES) -> Any:
+    """Parse a bounded JSON file: size, integer length and nesting depth are limited; InputError otherwise."""
+    data = read_input(path, what, limit)
+    try:
+        return json.loads(data.decode("utf-8"), parse_int=_json_int, parse_constant=_json_constant)
+    except RecursionError:
+        raise InputError(f"{path}: not a readable {what} (nested too deeply)") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable {what} ({str(exc).splitlines()[0]})") from None
+
+
+def load_npy(path: str | os.PathLike[str]) -> np.ndarray:
+    """A real numeric 2D ``.npy`` array, its header checked before any data is read (memory-mapped)."""
+    size = open_input(path, "point file")
+    try:
+        with open(path, "rb") as fh:
+            version = np.lib.format.read_magic(fh)
+            header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                      else np.lib.format.read_array_header_2_0)
+            shape, fortran, dtype = header(fh, max_header_size=10_000)
+            offset = fh.tell()
+    except (ValueError, OSError, SyntaxError, TypeError) as exc:
+        raise InputError(f"{path}: not a readable .npy array ({str(exc).splitlines()[0]})") from None
+    if dtype.kind not in "iuf" or dtype.hasobject or dtype.fields:
+        kind = {"c": "complex numbers", "b": "booleans", "O": "Python objects"}.get(dtype.kind, f"dtype {dtype}")
+        raise InputError(f"{path}: .npy holds {kind}; real numbers (float or int) are needed")
+    if len(shape) != 2:
+        raise InputError(f"{path}: expected a 2D array of points, got shape {shape}")
+    count = int(np.prod(shape, dtype=object))
+    if shape[0] > MAX_POINTS:
+        raise InputError(f"{path}: .npy claims {shape[0]} points; at most {MAX_POINTS} are accepted")
+    if offset + count * dtype.itemsize > size:
+        raise InputError(f"{path}: .npy is truncated (its header claims shape {shape}, "
+                         f"{count * dtype.itemsize} bytes of data; the file has {size - offset})")
+    try:
+        data = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=tuple(shape),
+                         order="F" if fortran else "C")
+        return np.array(data, dtype=np.float64)
+    except (ValueError, OSError) as exc:
+        raise InputError(f"{path}: not a readable .npy array ({exc})") from None
+
+
+def check_coordinates(pts: np.ndarray, source: str) -> None:
+    """InputError for NaN/inf, or magnitudes whose distances overflow (beyond :data:`MAX_COORDINATE`)."""
+    if not np.all(np.isfinite(pts)):
+        bad = int(np.argwhere(~np.isfinite(pts))[0, 0])
+        raise InputError(f"{source}: point {bad + 1} is NaN or infinite")
+    if len(pts) > MAX_POINTS:
+        raise InputError(f"{source}: {len(pts)} points; at most {MAX_POINTS} are accepted")
+    big = np.abs(pts).max(initial=0.0)
+    if big > MAX_COORDINATE:
+        bad = int(np.argwhere(np.abs(pts) > MAX_COORDINATE)[0, 0])
+        raise InputError(f"{source}: point {bad + 1} has a coordinate of magnitude {big:.3g}; at most "
+                         f"{MAX_COORDINATE:.0e} is supported (rescale the data)")
+    spread = float((pts.max(axis=0) - pts.min(axis=0)).max(initial=0.0)) if len(pts) else 0.0
+    if 0.0 < spread < MIN_EXTENT:
+        raise InputError(f"{source}: the points span only {spread:.3g}; the extent must be at least "
+                         f"{MIN_EXTENT:.0e} (rescale the data)")
+    if 0.0 < spread < MIN_RELATIVE_EXTENT * big:
+        raise InputError(f"{source}: the points span only {spread:.3g} at coordinates of {big:.3g}: they differ "
+                         f"only in rounding (the extent must be at least {MIN_RELATIVE_EXTENT:.0e} of the largest "
+                         "coordinate; subtract an offset)")
 
 
 class _PointSet:
@@ -47,24 +190,63 @@ class CurveTarget(_PointSet):
         return len(self.points)
 
 
+def _cells(line: str) -> list[str]:
+    return [c for c in line.replace(";", ",").replace("\t", ",").replace(" ", ",").split(",") if c != ""]
+
+
+def _fast_table(text: str) -> np.ndarray | None:
+    """The table parsed by numpy's C reader (10^6 rows in about a second), or None when anything is unusual
+    (the line-by-line reader then finds and names the problem)."""
+    start = 0
+    while start < len(text):  # skip blank and comment lines, then a header line if it is not numeric
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end + 1
+        line = text[start:end].split("#", 1)[0].strip()
+        if line:
+            try:
+                [float(c) for c in _cells(line)]
+            except ValueError:
+                start = end
+            break
+        start = end
+    body = text[start:]
+    if not body.strip():
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            table = np.loadtxt(io.StringIO(body.replace(",", " ").replace(";", " ")), comments="#", ndmin=2,
+                               dtype=np.float64)
+    except (ValueError, Warning):
+        return None
+    return table if table.size else None
+
+
 def _read_text_table(path: Path) -> np.ndarray:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_input(path, "point file").decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file") from None
+    table = _fast_table(text)
+    if table is not None:
+        if len(table) > MAX_POINTS:
+            raise InputError(f"{path}: more than {MAX_POINTS} rows")
+        return table
     rows = []
     first = True
     for lineno, raw in enumerate(text.splitlines(), 1):
         line = raw.split("#", 1)[0].strip()
         if not line:
             continue
-        cells = [c for c in line.replace(";", ",").replace("\t", ",").replace(" ", ",").split(",") if c != ""]
+        cells = _cells(line)
         try:
             rows.append([float(c) for c in cells])
         except ValueError:
             if not first:
                 raise InputError(f"{path}:{lineno}: non-numeric value in {raw.strip()!r}") from None
         first = False
+        if len(rows) > MAX_POINTS:
+            raise InputError(f"{path}: more than {MAX_POINTS} rows")
     if not rows:
         raise InputError(f"{path}: no data rows")
     widths = {len(r) for r in rows}
@@ -76,18 +258,10 @@ def _read_text_table(path: Path) -> np.ndarray:
 def load_curve_points(path: str | os.PathLike[str]) -> np.ndarray:
     """Read an ordered ``x, y`` point file (CSV/TXT with optional header, or NPY)."""
     p = Path(path)
-    if not p.exists():
-        raise InputError(f"{p}: no such file")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, not a point file")
-    if p.stat().st_size == 0:
-        raise InputError(f"{p}: file is empty")
+    open_input(p, "point file")
     suffix = p.suffix.lower()
     if suffix == ".npy":
-        try:
-            data = np.load(p, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise InputError(f"{p}: not a readable .npy array ({exc})") from None
+        data = load_npy(p)
     elif suffix in CURVE_SUFFIXES or suffix == "":
         data = _read_text_table(p)
     else:
@@ -95,19 +269,26 @@ def load_curve_points(path: str | os.PathLike[str]) -> np.ndarray:
     return validate_curve_points(data, source=str(p))
 
 
+def _as_points(points: Any, source: str) -> np.ndarray:
+    """``points`` as a float64 array; complex, boolean or non-numeric data raise InputError."""
+    if np.iscomplexobj(points):
+        raise InputError(f"{source}: points are complex numbers; real coordinates are needed")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            return np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError, Warning):
+        raise InputError(f"{source}: points must be real numbers in rows of equal length") from None
+
+
 def validate_curve_points(points: np.ndarray, source: str = "points") -> np.ndarray:
     """Check an ordered 2D or 3D point array; returns it as float64 ``(n, 2)`` or ``(n, 3)``."""
-    try:
-        pts = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{source}: points must be numbers") from None
+    pts = _as_points(points, source)
     if pts.ndim != 2:
         raise InputError(f"{source}: expected rows of x, y[, z] (got an array of shape {pts.shape})")
     if pts.shape[1] not in (2, 3):
         raise InputError(f"{source}: expected 2 or 3 columns (x, y[, z]), got {pts.shape[1]}")
-    if not np.all(np.isfinite(pts)):
-        bad = int(np.argwhere(~np.isfinite(pts))[0, 0])
-        raise InputError(f"{source}: point {bad + 1} is NaN or infinite")
+    check_coordinates(pts, source)
     if len(pts) < 4:
         raise InputError(f"{source}: need at least 4 points, got {len(pts)}")
     steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -131,6 +312,20 @@ def curve_target(points_or_path: np.ndarray | str | os.PathLike[str] | CurveTarg
         pts = load_curve_points(points_or_path)
         return CurveTarget(pts, name or Path(points_or_path).stem)
     return CurveTarget(validate_curve_points(points_or_path), name or "points")
+
+
+def target_kind(path: str | os.PathLike[str]) -> str:
+    """"curve" or "surface" for a target file: meshes, .xyz/.pts and 3-column data are surfaces, 2-column
+    data curves (the file is read to count its columns)."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix in SURFACE_MESH_SUFFIXES or suffix in (".xyz", ".pts"):
+        return "surface"
+    if suffix not in CURVE_SUFFIXES and suffix != "":
+        raise InputError(f"{p}: unsupported target type {suffix!r} (curves: {', '.join(CURVE_SUFFIXES)}; "
+                         f"surfaces: {', '.join(SURFACE_MESH_SUFFIXES + SURFACE_CLOUD_SUFFIXES)})")
+    data = load_npy(p) if suffix == ".npy" else _read_text_table(p)
+    return "curve" if data.ndim == 2 and data.shape[1] == 2 else "surface"
 
 
 # --- surface targets ------------------------------------------------------------------------------------------
@@ -196,6 +391,15 @@ class SurfaceTarget(_PointSet):
     def __len__(self) -> int:
         return len(self.points)
 
+    def subsampled(self, max_points: int, seed: int = 0) -> SurfaceTarget:
+        """This target, or for a cloud of more than ``max_points`` points a fixed random subset of that many
+        (same seed, same subset; order kept): the search can run on it while the final metrics use all
+        points. A mesh target is returned as it is (its triangles carry the surface)."""
+        if self.faces is not None or max_points <= 0 or len(self.points) <= max_points:
+            return self
+        keep = np.sort(np.random.default_rng(seed).choice(len(self.points), max_points, replace=False))
+        return SurfaceTarget(self.points[keep], None, self.name)
+
     def __getstate__(self) -> dict:
         """Pickle the data only (worker processes rebuild their trees)."""
         return {"points": self.points, "faces": self.faces, "name": self.name}
@@ -211,10 +415,7 @@ def validate_surface_points(points: np.ndarray, source: str = "points") -> np.nd
     Rejects: non-numbers, 2D data, NaN/inf, fewer than 4 points, a single point, and collinear or flat
     data (a closed surface has volume).
     """
-    try:
-        pts = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{source}: points must be numbers") from None
+    pts = _as_points(points, source)
     if pts.ndim != 2:
         raise InputError(f"{source}: expected rows of x, y, z (got an array of shape {pts.shape})")
     if pts.shape[1] == 2:
@@ -223,30 +424,18 @@ def validate_surface_points(points: np.ndarray, source: str = "points") -> np.nd
         pts = pts[:, :3]
     if pts.shape[1] != 3:
         raise InputError(f"{source}: expected 3 columns (x, y, z), got {pts.shape[1]}")
-    if not np.all(np.isfinite(pts)):
-        bad = int(np.argwhere(~np.isfinite(pts))[0, 0])
-        raise InputError(f"{source}: point {bad + 1} is NaN or infinite")
+    check_coordinates(pts, source)
     if len(pts) < 4:
         raise InputError(f"{source}: need at least 4 points, got {len(pts)}")
     centred = pts - pts.mean(axis=0)
     sv = np.linalg.svd(centred, compute_uv=False)
-    if sv[0] <= 1e-12 * max(1.0, float(np.abs(pts).max())):
+    if sv[0] <= 1e-12 * float(np.abs(pts).max()):
         raise InputError(f"{source}: all points coincide (a single point)")
     if sv[1] <= 1e-9 * sv[0]:
         raise InputError(f"{source}: degenerate target: all points lie on a line")
     if sv[2] <= 1e-9 * sv[0]:
         raise InputError(f"{source}: degenerate target: all points lie in one plane (a flat target has no volume)")
     return pts
-
-
-def _ply_has_faces(data: bytes) -> bool:
-    end = data.find(b"end_header")
-    header = data[:end if end >= 0 else len(data)].decode("ascii", errors="replace").split("\n")
-    for line in header:
-        parts = line.split()
-        if len(parts) >= 3 and parts[0] == "element" and parts[1] == "face":
-            return parts[2] != "0"
-    return False
 
 
 def _obj_has_faces(data: bytes) -> bool:
@@ -269,63 +458,71 @@ def _read_obj_points(data: bytes, what: str) -> np.ndarray:
     return np.asarray(rows, dtype=np.float64)
 
 
-def _read_ply_points(path: Path) -> np.ndarray:
-    import trimesh
-
-    try:
-        loaded = trimesh.load(str(path), file_type="ply", process=False)
-    except Exception as exc:  # trimesh raises many types on malformed files
-        raise InputError(f"{path.name}: cannot read PLY point cloud ({exc})") from None
-    pts = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
-    if not len(pts):
-        raise InputError(f"{path.name}: no vertices")
-    return pts
-
-
 def load_surface_target(path: str | os.PathLike[str], name: str | None = None) -> SurfaceTarget:
     """Read a surface target: a mesh (OBJ, PLY, STL, OFF) or a point cloud (XYZ, CSV, TXT, PTS, NPY, or an
-    OBJ/PLY without faces). Every problem is an InputError (or TopologyError) with a one-line reason."""
-    from ..geometry.surface_distance import triangulate
-    from .meshio import load_mesh
+    OBJ/PLY without faces). Every problem is an InputError (or TopologyError) with a one-line reason.
+
+    Files are read only if they are regular files of at most :data:`MAX_INPUT_BYTES`. A mesh target is
+    repaired where that is safe (zero-area triangles are dropped, with a :class:`~gsr_cad.errors.GsrWarning`)
+    and refused where it is not (non-manifold edges, inconsistent orientation: TopologyError).
+    """
+    from .meshio import read_mesh_bytes, read_ply_vertices
 
     p = Path(path)
-    if not p.exists():
-        raise InputError(f"{p}: no such file")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, not a mesh or point file")
-    if p.stat().st_size == 0:
-        raise InputError(f"{p}: file is empty")
+    open_input(p, "mesh or point file")
     suffix = p.suffix.lower()
     label = name or p.stem
     if suffix in SURFACE_CLOUD_SUFFIXES:
-        if suffix == ".npy":
-            try:
-                data = np.load(p, allow_pickle=False)
-            except (ValueError, OSError) as exc:
-                raise InputError(f"{p}: not a readable .npy array ({exc})") from None
-        else:
-            data = _read_text_table(p)
+        data = load_npy(p) if suffix == ".npy" else _read_text_table(p)
         return SurfaceTarget(validate_surface_points(data, str(p)), None, label)
     if suffix not in SURFACE_MESH_SUFFIXES:
         raise InputError(f"{p}: unsupported target type {suffix or '(no suffix)'!r} "
                          f"(use {', '.join(SURFACE_MESH_SUFFIXES + SURFACE_CLOUD_SUFFIXES)})")
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    if suffix == ".ply" and not _ply_has_faces(raw):
-        return SurfaceTarget(validate_surface_points(_read_ply_points(p), str(p)), None, label)
+    raw = read_input(p, "mesh file")
+    if suffix == ".ply":
+        vertices, faces = read_ply_vertices(raw, p.name)
+        if faces is None:
+            return SurfaceTarget(validate_surface_points(vertices, str(p)), None, label)
     if suffix == ".obj" and not _obj_has_faces(raw):
         return SurfaceTarget(validate_surface_points(_read_obj_points(raw, p.name), str(p)), None, label)
-    mesh = load_mesh(p, validate=False)
+    mesh = read_mesh_bytes(raw, suffix[1:], p.name)
     pts = validate_surface_points(mesh.vertices, str(p))
-    return SurfaceTarget(pts, triangulate(mesh.corners, mesh.offsets), label)
+    return SurfaceTarget(pts, target_triangles(mesh, p.name), label)
+
+
+def target_triangles(mesh, source: str) -> np.ndarray:
+    """The triangles of a target mesh, checked: zero-area triangles are dropped (with a warning);
+    non-manifold edges or inconsistent orientation raise TopologyError (they make the inside ambiguous)."""
+    from ..errors import TopologyError
+    from ..geometry.polymesh import PolyMesh
+    from ..geometry.surface_distance import triangulate
+    from ..geometry.validation import DEGENERATE_AREA, validate_mesh
+
+    tri = triangulate(mesh.corners, mesh.offsets)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    area = 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
+    diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    flat = area <= DEGENERATE_AREA * diag**2
+    if flat.all():
+        raise TopologyError(f"{source}: every face has zero area")
+    if flat.any():
+        warnings.warn(f"{source}: dropped {int(flat.sum())} zero-area triangle(s) of {len(tri)}", GsrWarning,
+                      stacklevel=2)
+        tri = tri[~flat]
+    used = np.unique(tri)
+    remap = np.full(len(v), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    try:
+        validate_mesh(PolyMesh(v[used], remap[tri].ravel(), np.arange(0, 3 * len(tri) + 1, 3)))
+    except TopologyError as exc:
+        raise TopologyError(f"{source}: unusable target mesh: {exc} (repair it, or give its vertices as a "
+                            "point cloud)") from None
+    return tri
 
 
 def surface_target(source, name: str | None = None) -> SurfaceTarget:
     """A validated :class:`SurfaceTarget` from a path, an ``(n, 3)`` point array, a PolyMesh or a target."""
     from ..geometry.polymesh import PolyMesh
-    from ..geometry.surface_distance import triangulate
 
     if isinstance(source, SurfaceTarget):
         validate_surface_points(source.points, source.name)
@@ -334,7 +531,7 @@ def surface_target(source, name: str | None = None) -> SurfaceTarget:
         return load_surface_target(source, name)
     if isinstance(source, PolyMesh):
         pts = validate_surface_points(source.vertices, name or "mesh")
-        return SurfaceTarget(pts, triangulate(source.corners, source.offsets), name or "mesh")
+        return SurfaceTarget(pts, target_triangles(source, name or "mesh"), name or "mesh")
     return SurfaceTarget(validate_surface_points(source, name or "points"), None, name or "points")
 
 

@@ -21,6 +21,7 @@ from ..errors import ExportError, InputError, TopologyError
 from ..geometry.polymesh import PolyMesh
 from ..geometry.surface_distance import triangulate as fan_triangles
 from ..geometry.validation import validate_mesh
+from .inputs import read_input
 
 READ_FORMATS = ("obj", "off", "ply", "stl")
 WRITE_FORMATS = ("obj", "off", "ply", "stl")
@@ -31,12 +32,16 @@ def _mesh(vertices: list | np.ndarray, faces: list[list[int]] | np.ndarray, what
     if not len(faces):
         raise InputError(f"{what}: no faces (a mesh file is needed, not a point cloud)")
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    if isinstance(faces, np.ndarray):
-        sizes = np.full(len(faces), faces.shape[1], dtype=np.int64)
-        corners = faces.astype(np.int64).ravel()
-    else:
-        sizes = np.fromiter((len(f) for f in faces), dtype=np.int64, count=len(faces))
-        corners = np.fromiter((i for f in faces for i in f), dtype=np.int64, count=int(sizes.sum()))
+    try:
+        if isinstance(faces, np.ndarray):
+            sizes = np.full(len(faces), faces.shape[1], dtype=np.int64)
+            corners = faces.astype(np.int64).ravel()
+        else:
+            sizes = np.fromiter((len(f) for f in faces), dtype=np.int64, count=len(faces))
+            corners = np.fromiter((i for f in faces for i in f), dtype=np.int64, count=int(sizes.sum()))
+    except OverflowError:
+        raise InputError(f"{what}: a face refers to a vertex index beyond 64 bits, but there are "
+                         f"{len(v)} vertices") from None
     if np.any(sizes < 3):
         raise InputError(f"{what}: face {int(np.argmax(sizes < 3))} has fewer than 3 corners")
     bad = corners[(corners < 0) | (corners >= len(v))]
@@ -76,6 +81,8 @@ def _read_off(data: bytes, what: str) -> PolyMesh:
     lines = lines[1:] if len(lines[0]) == 1 else [lines[0][1:], *lines[1:]]  # counts on the header line or next
     try:
         nv, nf = int(lines[0][0]), int(lines[0][1])
+        if nv < 0 or nf < 0:
+            raise ValueError(f"negative counts ({nv} vertices, {nf} faces)")
         body = lines[1:]
         if len(body) < nv + nf:
             raise ValueError(f"{nv} vertices and {nf} faces announced, the file ends early")
@@ -118,6 +125,13 @@ def _ply_header(data: bytes, what: str) -> tuple[str, list, bytes]:
         raise InputError(f"{what}: malformed PLY header ({exc})") from None
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise InputError(f"{what}: unsupported PLY format {fmt or '(none)'!r}")
+    for name, count, props in elements:
+        if count < 0:
+            raise InputError(f"{what}: malformed PLY header (element {name} has a negative count {count})")
+        least = 2 if fmt == "ascii" else sum(np.dtype(p[1]).itemsize for p in props)
+        if count * least > len(body):
+            raise InputError(f"{what}: truncated PLY (the header announces {count} {name} elements, "
+                             f"the data holds {len(body)} bytes)")
     return fmt, elements, body
 
 
@@ -130,6 +144,8 @@ def _ply_binary(body: bytes, pos: int, count: int, props: list, order: str) -> t
     if len(props) == 1 and count:
         name, ct, it = props[0]
         n = int(np.frombuffer(body, order + ct, 1, pos)[0])
+        if n < 0:
+            raise ValueError(f"a list of {n} items")
         dtype = np.dtype([("n", order + ct), ("i", order + it, (n,))])
         if len(body) - pos >= count * dtype.itemsize:
             table = np.frombuffer(body, dtype=dtype, count=count, offset=pos)
@@ -143,6 +159,8 @@ def _ply_binary(body: bytes, pos: int, count: int, props: list, order: str) -> t
             pos += t.itemsize
             if len(p) == 3:
                 it = np.dtype(order + p[2])
+                if int(value) < 0:
+                    raise ValueError(f"a list of {int(value)} items")
                 value = np.frombuffer(body, it, int(value), pos)
                 pos += value.nbytes
             cols[p[0]].append(value)
@@ -161,10 +179,17 @@ def _ply_ascii(tokens, count: int, props: list) -> dict:
 
 
 def _read_ply(data: bytes, what: str) -> PolyMesh:
+    verts, faces = read_ply_vertices(data, what)
+    return _mesh(verts, [] if faces is None else faces, what)
+
+
+def read_ply_vertices(data: bytes, what: str) -> tuple[np.ndarray, list | np.ndarray | None]:
+    """``(vertices (n, 3), faces or None)`` of a PLY file (None when it has no face element or 0 faces);
+    a truncated or malformed file raises InputError."""
     fmt, elements, body = _ply_header(data, what)
     tokens = iter(body.split()) if fmt == "ascii" else iter(())
     order = ">" if fmt == "binary_big_endian" else "<"
-    pos, verts, faces = 0, None, []
+    pos, verts, faces, has_faces = 0, None, [], False
     try:
         for name, count, props in elements:
             if fmt == "ascii":
@@ -175,12 +200,15 @@ def _read_ply(data: bytes, what: str) -> PolyMesh:
                 verts = np.stack([np.asarray(cols[c], dtype=np.float64) for c in "xyz"], axis=1)
             elif name == "face":
                 key = next((k for k in ("vertex_indices", "vertex_index") if k in cols), None)
-                if key is None:
+                if key is None or next(len(p) for p in props if p[0] == key) != 3:
                     raise ValueError("the face element has no vertex_indices list")
                 faces = cols[key] if isinstance(cols[key], np.ndarray) else [list(map(int, f)) for f in cols[key]]
-    except (StopIteration, ValueError, KeyError, TypeError) as exc:
+                has_faces = count > 0
+    except (StopIteration, ValueError, KeyError, TypeError, OverflowError) as exc:
         raise InputError(f"{what}: malformed or truncated PLY ({exc or 'it ends early'})") from None
-    return _mesh(np.zeros((0, 3)) if verts is None else verts, faces, what)
+    if verts is None or not len(verts):
+        raise InputError(f"{what}: no vertices")
+    return verts, faces if has_faces else None
 
 
 def _read_stl(data: bytes, what: str) -> PolyMesh:
@@ -213,23 +241,23 @@ def load_mesh(path: str | os.PathLike[str], validate: bool = True) -> PolyMesh:
     if fmt not in _READERS:
         raise InputError(f"{p.name}: unsupported mesh format {p.suffix or '(no suffix)'!r} "
                          f"(use {', '.join('.' + f for f in READ_FORMATS)})")
-    try:
-        data = p.read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{p}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    if not data.strip():
-        raise InputError(f"{p.name}: file is empty")
-    try:
-        mesh = _READERS[fmt](data, p.name)
-    except TopologyError as exc:
-        raise TopologyError(f"{p.name}: {exc}") from None
+    mesh = read_mesh_bytes(read_input(p, "mesh file", label=p.name), fmt, p.name)
     if validate:
         try:
             validate_mesh(mesh)
         except TopologyError as exc:
             raise TopologyError(f"{p.name}: {exc}") from None
+    return mesh
+
+
+def read_mesh_bytes(data: bytes, fmt: str, what: str) -> PolyMesh:
+    """Parse the bytes of a mesh file in format ``fmt`` (obj, off, ply, stl); InputError if malformed."""
+    if not data.strip():
+        raise InputError(f"{what}: file is empty")
+    try:
+        mesh = _READERS[fmt](data, what)
+    except TopologyError as exc:
+        raise TopologyError(f"{what}: {exc}") from None
     return mesh
 
 

@@ -60,7 +60,7 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ..errors import ConfigError, GsrError, InputError, OpError
-from ..ga import GAConfig, GenerationReport, GeneticAlgorithm, RunResult
+from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry.polymesh import PolyMesh, unit_cube
 from ..geometry.subdivision import CatmullClark, get_catmull_clark
 from ..geometry.surface_distance import TriangleSet, mixed_mean_distance, point_to_surface
@@ -224,12 +224,14 @@ class SurfaceProblem:
         """The polish written back as ``translate_vertex`` ops (the GA's memetic hook)."""
         return self.polished(genome, max(self.config.polish_rounds, 1))
 
-    def simplified(self, genome: tuple) -> tuple:
+    def simplified(self, genome: tuple, should_stop: Callable[[], bool] | None = None) -> tuple:
         """``genome`` rewritten into the shortest equivalent history found (:mod:`gsr_cad.ops.rewrite`) whose
-        cost exceeds ``genome``'s by at most ``history_tolerance``; ``genome`` itself if none does."""
+        cost exceeds ``genome``'s by at most ``history_tolerance``; ``genome`` itself if none does (the
+        search for one ends early once ``should_stop()`` is true)."""
         limit = self.evaluate(genome, 0).cost + self.config.history_tolerance
         return simplify_history(self.template, genome, REWRITE_TOLERANCES, kinds=self.config.op_kinds,
-                                accept=lambda history: self.evaluate(history, 0).cost <= limit)
+                                accept=lambda history: self.evaluate(history, 0).cost <= limit,
+                                should_stop=should_stop)
 
     def niche(self, genome: tuple) -> tuple:
         """The connectivity of the control mesh ``genome`` builds (the GA polishes the best of a few)."""
@@ -597,7 +599,9 @@ def _pick_snapshots(changes: list[tuple[int, float, tuple]], count: int) -> list
 def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh = "cube", preset: str = "default",
                         seed: int | None = None, config: SurfaceConfig | None = None,
                         progress: Callable[[GenerationReport], None] | None = None,
-                        evaluator: Callable | None = None, n_snapshots: int = 4, **overrides: Any) -> SurfaceResult:
+                        evaluator: Callable | None = None, n_snapshots: int = 4,
+                        should_stop: Callable[[], bool] | None = None, checkpoint: str | os.PathLike[str] | None = None,
+                        **overrides: Any) -> SurfaceResult:
     """Reconstruct a Catmull-Clark control mesh and its op history from a mesh or point cloud.
 
     ``target``: a path (OBJ, PLY, STL, OFF mesh or XYZ/CSV/TXT/PTS/NPY/faceless PLY-OBJ cloud), an
@@ -605,7 +609,10 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     "cube" (fitted to the target's box), a quad mesh file or a PolyMesh. ``overrides`` are
     :class:`SurfaceConfig` fields. ``evaluator`` is any ``(fn, items) -> list`` (e.g. a
     :class:`~gsr_cad.ga.ProcessPoolEvaluator`). Ctrl-C during the search keeps the best genome found so
-    far (``result.interrupted``). Bad input raises InputError / TopologyError / ConfigError.
+    far (``result.interrupted``), as does ``should_stop()`` turning true (the final polish and the history
+    rewrite are then skipped or cut short). With ``checkpoint`` the search state is saved there every
+    generation and, if that file exists, the run continues from it (same seed, same result as an
+    uninterrupted run). Bad input raises InputError / TopologyError / ConfigError.
     """
     started = time.perf_counter()
     tgt = surface_target(target)
@@ -613,7 +620,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
               else dataclasses.replace(config, **overrides).validated())
     tmpl = make_template(template, tgt, config)
     problem = SurfaceProblem(tgt, config, tmpl)
-    engine = GeneticAlgorithm(problem, _ga_config(config), seed=seed, evaluator=evaluator)
+    tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
+    engine = start_or_resume(problem, _ga_config(config), seed, evaluator, checkpoint, tag)
     changes: list[tuple[int, float, tuple]] = []
 
     def on_generation(report: GenerationReport) -> None:
@@ -622,15 +630,21 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         if progress is not None:
             progress(report)
 
-    run: RunResult = engine.run(on_generation=on_generation)
+    run: RunResult = engine.run(on_generation=on_generation, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
     searched = time.perf_counter()
-    final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True)) if best else best
+
+    def hurry() -> bool:
+        return should_stop is not None and bool(should_stop())
+
+    final = best
+    if best and not hurry():
+        final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True))
     polished_at = time.perf_counter()
     polish_seconds = polished_at - searched
     searched_ops = _letters(final)
-    if config.simplify_history and final:
-        final = problem.simplified(final)
+    if config.simplify_history and final and not hurry():
+        final = problem.simplified(final, should_stop)
     simplify_seconds = time.perf_counter() - polished_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
@@ -652,7 +666,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "n_ops": len(final),
         "ops": _letters(final),
     })
-    snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, config.polish_rounds).control)
+    snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
     cfg = config.to_json()
     cfg.update({

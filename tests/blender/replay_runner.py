@@ -20,6 +20,8 @@ def empty_scene():
         bpy.data.objects.remove(obj)
     for mesh in list(bpy.data.meshes):
         bpy.data.meshes.remove(mesh)
+    for collection in list(bpy.data.collections):
+        bpy.data.collections.remove(collection)
 
 
 def describe_objects():
@@ -29,7 +31,8 @@ def describe_objects():
                  "use_limit_surface": m.use_limit_surface, "boundary_smooth": m.boundary_smooth}
                 for m in obj.modifiers if m.type == "SUBSURF"]
         out.append({"name": obj.name, "vertices": len(obj.data.vertices), "faces": len(obj.data.polygons),
-                    "in_scene": obj.name in bpy.context.scene.objects, "modifiers": mods})
+                    "in_scene": obj.name in bpy.context.scene.objects, "modifiers": mods,
+                    "hidden": bool(obj.hide_get()), "collections": [c.name for c in obj.users_collection]})
     return out
 
 

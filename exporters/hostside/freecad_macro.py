@@ -1,0 +1,393 @@
+"""A gsr_cad result for FreeCAD: the modelling history, and the curve or the limit surface and mesh.
+
+Written by gsr_cad's "fcmacro" exporter; everything specific to this result is in DATA below.
+
+Curves (DATA["kind"] == "curve") get a parametric history: the group "History" holds one FeaturePython
+object per step, the template, then one per op, each linked to the step before it ("Base"). An op's
+parameters are properties you can edit in FreeCAD ("Index", and "Position" or "Delta"); recomputing the
+document replays every later op and rebuilds "Curve", the exact clamped uniform B-spline of degree
+DATA["degree"] on the last step's points. Every step shows its control polygon (all hidden but the last)
+and keeps its points in "Points" and its op as JSON in "Op".
+
+Surfaces get a parametric history too, on the connectivity gsr_cad found: one FeaturePython object per
+step (the template, then the control mesh after each op, shown as the compound of its face polygons; all
+hidden but the last), each linked to the step before. An op's numbers are editable properties ("Delta",
+"Distance", "Thickness", "Offset", "Factor"; its element indices are read-only); recomputing replays every
+later op with this file's own copy of gsr_cad's op geometry and rebuilds "LimitMesh", the Catmull-Clark
+limit mesh, as fixed weighted sums of the control vertices (DATA["limit_rows"]). "LimitSurface" is the
+limit surface as the exported B-spline patches (the same as gsr_cad's STEP export; DATA["patch_deviation"]
+is their largest deviation from the exact limit surface), sewn into a shell and, when closed, a solid; it
+is not recomputed.
+
+Run: freecadcmd this_file.FCMacro      (GSR_FCSTD=/path/to/file.FCStd, or GSR_ARGS=path, to save the document)
+ or: FreeCAD > Macro > Macros... > Execute, or build("/path/to/file.FCStd") from FreeCAD's Python console.
+Under freecadcmd an error exits with code 1 (FreeCAD itself would exit 0).
+"""
+import json
+import os
+import sys
+
+import FreeCAD as App
+import Part
+
+DATA = {}
+
+
+def _vector(p):
+    return App.Vector(p[0], p[1], p[2] if len(p) > 2 else 0.0)
+
+
+def _pair(v):
+    return [v.x, v.y] if DATA["dimension"] == 2 else [v.x, v.y, v.z]
+
+
+# --- curves: a parametric history ---------------------------------------------------------------------------
+
+def add_point(points, index, position):
+    """Insert a control point so that it becomes points[index] (1 <= index <= n - 1)."""
+    if not 1 <= index <= len(points) - 1:
+        raise ValueError("add_point index %d outside [1, %d]" % (index, len(points) - 1))
+    return points[:index] + [list(position)] + points[index:]
+
+
+def move_point(points, index, delta):
+    """Translate the inner control point points[index] by delta (1 <= index <= n - 2)."""
+    if not 1 <= index <= len(points) - 2:
+        raise ValueError("move_point index %d outside [1, %d]" % (index, len(points) - 2))
+    moved = [c + d for c, d in zip(points[index], delta)]
+    return points[:index] + [moved] + points[index + 1:]
+
+
+OPS = {"add_point": (add_point, "Position"), "move_point": (move_point, "Delta")}
+
+
+def clamped_knots(n, degree):
+    """Distinct knots and multiplicities of the clamped uniform knot vector of n poles on [0, 1]."""
+    spans = n - degree
+    return [i / spans for i in range(spans + 1)], [degree + 1] + [1] * (spans - 1) + [degree + 1]
+
+
+class Step:
+    """One step of the curve history: the template (no Base) or an op applied to its Base's points."""
+
+    def __init__(self, obj, op=None, points=None):
+        obj.addProperty("App::PropertyVectorList", "Points", "gsr_cad", "the control polygon after this step")
+        obj.addProperty("App::PropertyString", "Op", "gsr_cad", "the modelling op of this step (JSON)")
+        if op is not None:
+            obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the step this op applies to")
+            obj.addProperty("App::PropertyString", "Kind", "gsr_cad", "add_point or move_point")
+            obj.addProperty("App::PropertyInteger", "Index", "gsr_cad", "the control point the op adds or moves")
+            obj.addProperty("App::PropertyVector", OPS[op["op"]][1], "gsr_cad", "where to add, or how far to move")
+            obj.Kind = op["op"]
+            obj.Index = op["index"]
+            setattr(obj, OPS[op["op"]][1], _vector(op["position"] if op["op"] == "add_point" else op["delta"]))
+        else:
+            obj.Points = [_vector(p) for p in points]
+        obj.Proxy = self
+
+    def execute(self, obj):
+        if hasattr(obj, "Base"):
+            fn, field = OPS[obj.Kind]
+            value = _pair(getattr(obj, field))
+            points = fn([_pair(v) for v in obj.Base.Points], obj.Index, value)
+            obj.Op = json.dumps({"op": obj.Kind, "index": obj.Index, field.lower(): value})
+            obj.Points = [_vector(p) for p in points]
+        obj.Shape = Part.makePolygon(list(obj.Points))
+
+
+class Curve:
+    """The clamped uniform B-spline on the points of its Base step."""
+
+    def __init__(self, obj, base):
+        obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the last step of the history")
+        obj.addProperty("App::PropertyInteger", "Degree", "gsr_cad", "the B-spline degree (3 bspline, 2 chaikin)")
+        obj.Base = base
+        obj.Degree = DATA["degree"]
+        obj.Proxy = self
+
+    def execute(self, obj):
+        poles = list(obj.Base.Points)
+        knots, mults = clamped_knots(len(poles), obj.Degree)
+        spline = Part.BSplineCurve()
+        spline.buildFromPolesMultsKnots(poles, mults, knots, False, obj.Degree)
+        obj.Shape = spline.toShape()
+
+
+def build_curve(doc):
+    history = doc.addObject("App::DocumentObjectGroup", "History")
+    steps = []
+    for number, step in enumerate(DATA["steps"]):
+        obj = doc.addObject("Part::FeaturePython", "Step%03d" % number)
+        obj.Label = step["label"]
+        Step(obj, step["op"], step["points"])
+        if steps:
+            obj.Base = steps[-1]
+        history.addObject(obj)
+        steps.append(obj)
+    curve = doc.addObject("Part::FeaturePython", "Curve")
+    curve.Label = "curve (%s, degree %d)" % (DATA["scheme"], DATA["degree"])
+    Curve(curve, steps[-1])
+    return steps
+
+
+# --- surfaces: a parametric history on a fixed connectivity ------------------------------------------------
+
+def _sub(p, q):
+    return [p[0] - q[0], p[1] - q[1], p[2] - q[2]]
+
+
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _norm(a):
+    return (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) ** 0.5
+
+
+def _unit(a):
+    n = _norm(a)
+    if n == 0.0:
+        raise ValueError("a zero-length vector has no direction")
+    return [a[0] / n, a[1] / n, a[2] / n]
+
+
+def _normal(P, cycle):
+    """The unit Newell normal of a face."""
+    nx = ny = nz = 0.0
+    px, py, pz = P[cycle[-1]]
+    for i in cycle:
+        qx, qy, qz = P[i]
+        nx += (py - qy) * (pz + qz)
+        ny += (pz - qz) * (px + qx)
+        nz += (px - qx) * (py + qy)
+        px, py, pz = qx, qy, qz
+    return _unit([nx, ny, nz])
+
+
+def _along(P, cycle, distance):
+    n = _normal(P, cycle)
+    dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
+    return [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in cycle]
+
+
+def replay_translate_vertex(P, recipe, vertex, delta):
+    p = P[vertex]
+    P[vertex] = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]]
+
+
+def replay_translate_face(P, recipe, face, distance):
+    for c, q in zip(recipe["cycle"], _along(P, recipe["cycle"], distance)):
+        P[c] = q
+
+
+def replay_scale(P, recipe, factor):
+    centre = [(min(p[i] for p in P) + max(p[i] for p in P)) / 2 for i in range(3)]
+    P[:] = [[centre[i] + factor * (p[i] - centre[i]) for i in range(3)] for p in P]
+
+
+def replay_extrude(P, recipe, face, distance):
+    P += _along(P, recipe["cycle"], distance)
+
+
+def replay_inset(P, recipe, face, thickness):
+    """Every inner edge `thickness` from its outer edge: corners move along the bisectors of the inward
+    edge tangents (Blender's inset_individual with even offset)."""
+    cycle = recipe["cycle"]
+    n, k = _normal(P, cycle), len(cycle)
+    tangents = [_unit(_cross(n, _sub(P[cycle[(i + 1) % k]], P[cycle[i]]))) for i in range(k)]
+    inner = []
+    for i in range(k):
+        a, b = tangents[i - 1], tangents[i]
+        m = _unit([a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+        s = thickness / (m[0] * a[0] + m[1] * a[1] + m[2] * a[2])
+        p = P[cycle[i]]
+        inner.append([p[0] + s * m[0], p[1] + s * m[1], p[2] + s * m[2]])
+    P += inner
+
+
+def replay_edge_loop(P, recipe, edge):
+    P += [[0.5 * (P[u][0] + P[v][0]), 0.5 * (P[u][1] + P[v][1]), 0.5 * (P[u][2] + P[v][2])]
+          for u, v in recipe["ring"]]
+
+
+def replay_bevel(P, recipe, edge, offset):
+    """Each end of the edge becomes points on its other edges: `offset` from the edge's line on the two edges
+    next to it, `offset` along any further edge."""
+    a, b = recipe["a"], recipe["b"]
+
+    def end(v, w, entries):
+        pv, e_dir, out = P[v], _unit(_sub(P[w], P[v])), []
+        for x, adjacent in entries:
+            d = _sub(P[x], pv)
+            length = _norm(d)
+            u = [d[0] / length, d[1] / length, d[2] / length]
+            slide = offset / _norm(_cross(u, e_dir)) if adjacent else offset
+            out.append([pv[0] + slide * u[0], pv[1] + slide * u[1], pv[2] + slide * u[2]])
+        return out
+
+    at_a, at_b = end(a, b, recipe["ends"][0]), end(b, a, recipe["ends"][1])
+    at_b = at_b[-1:] + at_b[:-1]
+    P[a], P[b] = at_a[0], at_b[0]
+    P += at_a[1:] + at_b[1:]
+
+
+# the editable numbers of each op and their property types (element indices are read-only integers)
+PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"},
+              "translate_face": {"distance": "App::PropertyFloat"},
+              "scale": {"factor": "App::PropertyFloat"}, "extrude": {"distance": "App::PropertyFloat"},
+              "inset": {"thickness": "App::PropertyFloat"}, "edge_loop": {},
+              "bevel": {"offset": "App::PropertyFloat"}}
+
+
+class MeshStep:
+    """One step of the surface history: the template (no Base), or an op replayed on its Base's control
+    mesh. The op's numbers are editable properties; its element indices are fixed (read-only)."""
+
+    def __init__(self, obj, number):
+        step = DATA["steps"][number]
+        obj.addProperty("App::PropertyInteger", "Number", "gsr_cad", "the step's number in the history")
+        obj.addProperty("App::PropertyVectorList", "Points", "gsr_cad", "the control mesh's vertices after this step")
+        obj.addProperty("App::PropertyString", "Op", "gsr_cad", "the modelling op of this step (JSON)")
+        obj.Number = number
+        obj.setEditorMode("Number", 1)
+        op = step["op"]
+        if op is None:
+            obj.Points = [App.Vector(*p) for p in step["vertices"]]
+        else:
+            obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the step this op applies to")
+            for name, value in op.items():
+                if name == "op":
+                    continue
+                kind = PARAMETERS[op["op"]].get(name, "App::PropertyInteger")
+                prop = name.capitalize()
+                obj.addProperty(kind, prop, "gsr_cad", "op parameter %s" % name)
+                setattr(obj, prop, App.Vector(*value) if kind == "App::PropertyVector" else value)
+                if name not in PARAMETERS[op["op"]]:
+                    obj.setEditorMode(prop, 1)
+        obj.Proxy = self
+
+    def execute(self, obj):
+        step = DATA["steps"][obj.Number]
+        op = step["op"]
+        if op is not None:
+            params = {}
+            for name in op:
+                if name != "op":
+                    value = getattr(obj, name.capitalize())
+                    params[name] = [value.x, value.y, value.z] if isinstance(value, App.Vector) else value
+            P = [[v.x, v.y, v.z] for v in obj.Base.Points]
+            globals()["replay_" + op["op"]](P, step["recipe"], **params)
+            obj.Points = [App.Vector(*p) for p in P]
+            obj.Op = json.dumps(dict({"op": op["op"]}, **params))
+        pts = list(obj.Points)
+        obj.Shape = Part.Compound([Part.makePolygon([pts[i] for i in f] + [pts[f[0]]]) for f in step["faces"]])
+
+
+class LimitMesh:
+    """The Catmull-Clark limit mesh of its Base's control mesh: every limit point is a fixed weighted sum of
+    control vertices (the limit stencil of this connectivity), so it follows any edit of the history."""
+
+    def __init__(self, obj, base):
+        obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the last step of the history")
+        obj.Base = base
+        obj.Proxy = self
+
+    def execute(self, obj):
+        import Mesh
+
+        P = list(obj.Base.Points)
+        points = []
+        for cols, weights in DATA["limit_rows"]:
+            x = y = z = 0.0
+            for c, w in zip(cols, weights):
+                x, y, z = x + w * P[c].x, y + w * P[c].y, z + w * P[c].z
+            points.append(App.Vector(x, y, z))
+        obj.Mesh = Mesh.Mesh((points, [tuple(t) for t in DATA["limit_triangles"]]))
+
+
+def limit_surface():
+    """The exported B-spline patches sewn into a shell (a solid when the shell is closed)."""
+    faces = []
+    for patch in DATA["patches"]:
+        surface = Part.BSplineSurface()
+        surface.buildFromPolesMultsKnots([[App.Vector(*p) for p in row] for row in patch["poles"]],
+                                         patch["umults"], patch["vmults"], patch["uknots"], patch["vknots"],
+                                         False, False, patch["udegree"], patch["vdegree"])
+        faces.append(surface.toShape())
+    sewn = Part.Compound(faces)
+    sewn.sewShape(DATA["sew_tolerance"])
+    shell = Part.Shell(sewn.Faces)
+    if shell.isClosed():
+        solid = Part.Solid(shell)
+        if solid.Volume < 0:
+            solid.reverse()
+        return solid
+    return shell
+
+
+def build_surface(doc):
+    history = doc.addObject("App::DocumentObjectGroup", "History")
+    steps = []
+    for number, step in enumerate(DATA["steps"]):
+        obj = doc.addObject("Part::FeaturePython", "Step%03d" % number)
+        obj.Label = step["label"]
+        MeshStep(obj, number)
+        if steps:
+            obj.Base = steps[-1]
+        history.addObject(obj)
+        steps.append(obj)
+    surface = doc.addObject("Part::Feature", "LimitSurface")
+    surface.Label = "limit surface (%d B-spline patches, as exported)" % len(DATA["patches"])
+    surface.Shape = limit_surface()
+    mesh = doc.addObject("Mesh::FeaturePython", "LimitMesh")
+    mesh.Label = "limit mesh (%d triangles)" % len(DATA["limit_triangles"])
+    LimitMesh(mesh, steps[-1])
+    mesh.Visibility = False
+    return steps
+
+
+def build(fcstd_path=None):
+    """Make the document; save it to fcstd_path when one is given."""
+    doc = App.newDocument(DATA["doc_name"])
+    steps = (build_curve if DATA["kind"] == "curve" else build_surface)(doc)
+    doc.recompute()
+    broken = [obj.Label for obj in doc.Objects if not obj.isValid()]
+    if broken:
+        raise RuntimeError("recompute failed for %s" % ", ".join(broken))
+    for obj in steps[:-1]:
+        obj.Visibility = False
+    if App.GuiUp:
+        import FreeCADGui
+
+        FreeCADGui.SendMsgToActiveView("ViewFit")
+    if fcstd_path:
+        doc.saveAs(str(fcstd_path))
+    return doc
+
+
+def summary(doc):
+    """What was built, as a JSON-ready dict."""
+    out = {"document": doc.Name, "file": doc.FileName or None, "kind": DATA["kind"], "steps": len(DATA["steps"]),
+           "labels": [step["label"] for step in DATA["steps"]]}
+    if DATA["kind"] == "curve":
+        curve = doc.getObject("Curve").Shape
+        out.update(degree=DATA["degree"], poles=len(doc.getObject("Curve").Base.Points), curve_length=curve.Length)
+    else:
+        shape = doc.getObject("LimitSurface").Shape
+        out.update(patches=len(DATA["patches"]), shape=shape.ShapeType, valid=shape.isValid(),
+                   volume=shape.Volume if shape.ShapeType == "Solid" else None, area=shape.Area)
+    return out
+
+
+def _path_from_environment():
+    args = [a for a in os.environ.get("GSR_ARGS", "").split(os.pathsep) if a]
+    return args[0] if args else os.environ.get("GSR_FCSTD")
+
+
+try:
+    print("\n" + json.dumps(summary(build(_path_from_environment()))))
+except Exception as exc:
+    if App.GuiUp:
+        raise
+    print("error: %s: %s" % (type(exc).__name__, exc), file=sys.stderr)
+    raise SystemExit(1)

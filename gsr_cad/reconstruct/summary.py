@@ -1,0 +1,166 @@
+"""A result in words, for the CLI summary and the reports: distances both ways in model units and percent of
+the diagonal, the requested tolerance met or not, why the search stopped, and the warnings a user needs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .result import Result
+from .units import format_length, model_metrics, unit_label
+
+STOP_REASONS = {
+    "threshold": "fitness threshold reached",
+    "generations": "generation limit reached",
+    "max_seconds": "time limit reached",
+    "stall": "no improvement for --stall-generations",
+    "interrupted": "interrupted (Ctrl-C)",
+}
+
+_DIRECTIONS = (("data to fit", "data_to_fit", ("mean_distance", "max_distance")),
+               ("fit to data", "fit_to_data", ("mean_distance_to_target", "max_distance_to_target")))
+
+
+def _real(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+
+
+def diagonal(result: Result) -> float:
+    """The target's bounding-box diagonal in model units (1 when the result does not record it)."""
+    target = (result.config or {}).get("target")
+    value = target.get("diagonal") if isinstance(target, dict) else None
+    return float(value) if _real(value) and value > 0 else 1.0
+
+
+def units(result: Result) -> str:
+    return str((result.config or {}).get("units") or "model")
+
+
+def is_cloud(result: Result) -> bool:
+    target = (result.config or {}).get("target")
+    return isinstance(target, dict) and target.get("kind") == "cloud"
+
+
+def add_model_units(result: Result) -> None:
+    """Add ``units``, ``diagonal`` and ``*_model`` distances to ``result.metrics`` (before it is saved); a
+    point-cloud target has no surface to measure the fit against, so its ``mean_distance_to_target`` goes."""
+    if is_cloud(result):
+        result.metrics.pop("mean_distance_to_target", None)
+    result.metrics.update(model_metrics(result.metrics, diagonal(result), units(result)))
+
+
+def two_sided(metrics: dict[str, Any]) -> list[tuple[str, float | None, float | None]]:
+    """``(direction, mean, max)`` as fractions of the diagonal: the two-sided keys when present, else the
+    older one-sided ones; None where a direction is not measured."""
+    rows = []
+    for label, key, (old_mean, old_max) in _DIRECTIONS:
+        mean = metrics.get(f"{key}_mean", metrics.get(old_mean))
+        top = metrics.get(f"{key}_max", metrics.get(old_max))
+        rows.append((label, float(mean) if _real(mean) else None, float(top) if _real(top) else None))
+    return rows
+
+
+def tolerance_status(result: Result) -> tuple[float, bool] | None:
+    """``(requested max distance, met)`` when the run asked for one (``--max-distance``), else None."""
+    limit = (result.config or {}).get("max_distance")
+    if not _real(limit):
+        return None
+    met = result.metrics.get("tolerance_met")
+    if not isinstance(met, bool):
+        worst = result.metrics.get("data_to_fit_max", result.metrics.get("max_distance"))
+        met = _real(worst) and worst <= limit * (1 + 1e-9)
+    return float(limit), bool(met)
+
+
+def stop_text(result: Result) -> str:
+    m = result.metrics
+    reason = "interrupted" if result.interrupted else str(m.get("stop_reason", "?"))
+    text = STOP_REASONS.get(reason, reason)
+    gens, secs = m.get("generations"), m.get("seconds")
+    extra = [f"{gens} generations" if _real(gens) else "", f"{secs:.2f} s" if _real(secs) else ""]
+    return f"{text} ({', '.join(e for e in extra if e)})" if any(extra) else text
+
+
+def distance_lines(result: Result) -> list[str]:
+    """One line per direction: mean and max in model units and percent of the diagonal."""
+    diag, unit = diagonal(result), units(result)
+    lines = [f"  lengths in {unit_label(unit)} (and in % of the target's bounding-box diagonal, "
+             f"{diag:.4g} {unit_label(unit)})"]
+    for label, mean, top in two_sided(result.metrics):
+        if mean is None and top is None:
+            if is_cloud(result):
+                lines.append(f"  {label}: not measured for a point cloud")
+            continue
+        parts = [f"mean distance {format_length(mean, diag, unit)}" if mean is not None else "",
+                 f"max {format_length(top, diag, unit)}" if top is not None else ""]
+        lines.append(f"  {label}: " + ", ".join(p for p in parts if p))
+    status = tolerance_status(result)
+    if status is not None:
+        limit, met = status
+        lines.append(f"  max-distance tolerance {format_length(limit, diag, unit)}: {'met' if met else 'MISSED'}")
+    return lines
+
+
+def headline(result: Result) -> str:
+    """The first summary line: what was built and why the search stopped."""
+    m = result.metrics
+    if result.kind == "curve":
+        built = f"{m.get('n_control_points', len(result.control_points))} control points"
+    else:
+        built = (f"{m.get('n_control_faces', '?')} control faces, {m.get('n_control_vertices', '?')} vertices, "
+                 f"ops {run_length(str(m.get('ops', ''))) or '-'}")
+    status = "interrupted: best so far" if result.interrupted else "done"
+    return f"{status}: {built} from {len(result.genome)} ops; stopped: {stop_text(result)}"
+
+
+def summary_lines(result: Result, out: Path | None = None) -> list[str]:
+    """The headline (with the output directory), the distances both ways, the paper's measure for surfaces."""
+    lines = [headline(result) + (f" -> {out}" if out is not None else ""), *distance_lines(result)]
+    mixed = result.metrics.get("mixed_mean_distance")
+    if result.kind == "surface" and _real(mixed):
+        lines.append(f"  the paper's mixed mean distance: {mixed:.3g} of the diagonal (a pairing measure, not a "
+                     "deviation: see README)")
+    return lines
+
+
+def template_warning(template: Any, target: Any, source: str) -> str | None:
+    """A warning when a ``--template`` file sits off the target (it is used where it is, not placed)."""
+    if source == "cube" or template is None or target is None:
+        return None
+    lo, hi = template.vertices.min(axis=0), template.vertices.max(axis=0)
+    t_lo, t_hi = np.asarray(target.bbox[0], float), np.asarray(target.bbox[1], float)
+    diag = float(np.linalg.norm(t_hi - t_lo)) or 1.0
+    offset = float(np.linalg.norm((lo + hi) / 2 - (t_lo + t_hi) / 2))
+    ratio = float(np.linalg.norm(hi - lo)) / diag
+    if offset <= 0.1 * diag and 0.5 <= ratio <= 2.0:
+        return None
+    return (f"warning: template {source} is used where it is, not placed on the target: its box centre is "
+            f"{offset:.3g} model units ({100 * offset / diag:.3g} % of the diagonal) from the target's and its "
+            f"diagonal {ratio:.2g} times the target's")
+
+
+def warning_lines(result: Result) -> list[str]:
+    out = []
+    status = tolerance_status(result)
+    if status is not None and not status[1]:
+        diag, unit = diagonal(result), units(result)
+        worst = result.metrics.get("data_to_fit_max", result.metrics.get("max_distance"))
+        got = f"max distance {format_length(worst, diag, unit)}" if _real(worst) else "the max distance"
+        out.append(f"warning: tolerance missed: {got} > --max-distance {format_length(status[0], diag, unit)}")
+    return out
+
+
+
+
+def run_length(letters: str) -> str:
+    """Op letters with repeats counted: ``LVVVV`` -> ``L V4``."""
+    out, i = [], 0
+    while i < len(letters):
+        j = i
+        while j < len(letters) and letters[j] == letters[i]:
+            j += 1
+        out.append(letters[i] + (str(j - i) if j - i > 1 else ""))
+        i = j
+    return " ".join(out)

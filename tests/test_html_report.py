@@ -1,0 +1,220 @@
+"""report.html: opens offline in headless Chromium with no console error and shows the target and the result.
+
+Chromium is driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``): console errors,
+uncaught exceptions and every network request are recorded, and the plotly figures are read back from
+the page. Needs Debian's ``chromium`` (scripts/test.sh installs it when run as root); skips without it.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import select
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gsr_cad import html_report
+from gsr_cad.errors import InputError
+from gsr_cad.reconstruct.curve import reconstruct_curve
+from gsr_cad.reconstruct.samples import get_sample
+from gsr_cad.reconstruct.summary import add_model_units
+from gsr_cad.reconstruct.surface import reconstruct_surface
+
+CHROMIUM = Path("/usr/bin/chromium")
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+         "--remote-debugging-pipe"]
+FIGURES = """JSON.stringify(Array.from(document.querySelectorAll('.js-plotly-plot')).map(d => ({
+  id: d.id, names: (d.data || []).map(t => t.name), types: (d.data || []).map(t => t.type),
+  drawn: d.querySelectorAll('.main-svg').length > 0})))"""
+
+
+class DevTools:
+    """A Chromium process and its DevTools pipe (fd 3: commands in, fd 4: replies and events out)."""
+
+    def __init__(self, profile: Path):
+        to_chrome, self._write = os.pipe()
+        self._read, from_chrome = os.pipe()
+
+        def wire() -> None:  # via fresh copies: a pipe end may already sit on fd 3 or 4
+            inbound, outbound = os.dup(to_chrome), os.dup(from_chrome)
+            os.dup2(inbound, 3)
+            os.dup2(outbound, 4)
+
+        self.proc = subprocess.Popen([str(CHROMIUM), *FLAGS, f"--user-data-dir={profile}", "about:blank"],
+                                     preexec_fn=wire, close_fds=False, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.DEVNULL)
+        os.close(to_chrome)
+        os.close(from_chrome)
+        self._buffer, self._next, self.events = b"", 0, []
+
+    def _message(self, deadline: float) -> dict:
+        while b"\0" not in self._buffer:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([self._read], [], [], left)[0]:
+                raise TimeoutError("no answer from Chromium")
+            chunk = os.read(self._read, 1 << 20)
+            if not chunk:
+                raise RuntimeError("Chromium closed its DevTools pipe")
+            self._buffer += chunk
+        raw, self._buffer = self._buffer.split(b"\0", 1)
+        return json.loads(raw)
+
+    def call(self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 60) -> dict:
+        self._next += 1
+        message = {"id": self._next, "method": method, "params": params or {}}
+        if session:
+            message["sessionId"] = session
+        os.write(self._write, json.dumps(message).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        while True:
+            reply = self._message(deadline)
+            if reply.get("id") == self._next:
+                if "error" in reply:
+                    raise RuntimeError(f"{method}: {reply['error']}")
+                return reply.get("result", {})
+            self.events.append(reply)
+
+    def wait_for(self, method: str, timeout: float = 60) -> dict:
+        deadline = time.monotonic() + timeout
+        for event in self.events:
+            if event.get("method") == method:
+                return event
+        while True:
+            event = self._message(deadline)
+            self.events.append(event)
+            if event.get("method") == method:
+                return event
+
+    def close(self) -> None:
+        try:
+            self.call("Browser.close", timeout=10)
+        except (RuntimeError, TimeoutError, OSError):
+            pass
+        try:
+            self.proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        os.close(self._read)
+        os.close(self._write)
+
+
+def open_in_chromium(page: Path, profile: Path) -> tuple[list[dict], list[str], list[str]]:
+    """Load ``page``; returns its plotly figures, its console errors and exceptions, and its non-file requests."""
+    tools = DevTools(profile)
+    try:
+        target = tools.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+        session = tools.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        for domain in ("Runtime", "Log", "Page", "Network"):
+            tools.call(f"{domain}.enable", session=session)
+        tools.call("Page.navigate", {"url": page.resolve().as_uri()}, session=session)
+        tools.wait_for("Page.loadEventFired", timeout=120)
+        figures: list[dict] = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:  # plotly draws 3D scenes after the load event
+            value = tools.call("Runtime.evaluate", {"expression": FIGURES, "returnByValue": True}, session=session)
+            figures = json.loads(value["result"]["value"])
+            if figures and all(f["drawn"] for f in figures):
+                break
+            time.sleep(0.5)
+        time.sleep(1.0)
+        tools.call("Runtime.evaluate", {"expression": "1"}, session=session)  # collect the events so far
+    finally:
+        tools.close()
+    errors, requests = [], []
+    for event in tools.events:
+        method, params = event.get("method"), event.get("params", {})
+        if method == "Runtime.exceptionThrown":
+            errors.append(json.dumps(params.get("exceptionDetails", {}))[:500])
+        elif method == "Runtime.consoleAPICalled" and params.get("type") in ("error", "assert"):
+            errors.append(json.dumps(params.get("args", []))[:500])
+        elif method == "Log.entryAdded" and params.get("entry", {}).get("level") == "error":
+            errors.append(params["entry"].get("text", "")[:500])
+        elif method == "Network.requestWillBeSent":
+            url = params.get("request", {}).get("url", "")
+            if not url.startswith(("file:", "data:", "about:")):
+                requests.append(url)
+    return figures, errors, requests
+
+
+@pytest.fixture(scope="module")
+def curve_page(tmp_path_factory):
+    s = get_sample("bspline_07_noisy")
+    result = reconstruct_curve(s.points, seed=1, units="mm", max_distance=0.03, initial_population=80,
+                               population=20, generations=6)
+    add_model_units(result)
+    return html_report.curve_html(result, s.points, tmp_path_factory.mktemp("c") / "report.html", truth=s.truth_ctrl)
+
+
+@pytest.fixture(scope="module")
+def surface_page(tmp_path_factory):
+    s = get_sample("inset_extrude")
+    result = reconstruct_surface(s.target, seed=1, units="mm", population=10, initial_population=10, n_parents=4,
+                                 n_perturb=2, n_newcomers=2, generations=2)
+    add_model_units(result)
+    return html_report.surface_html(result, tmp_path_factory.mktemp("s") / "report.html"), result
+
+
+def test_the_page_is_self_contained(curve_page, surface_page):
+    for page in (curve_page, surface_page[0]):
+        text = page.read_text(encoding="utf-8")
+        assert "<script src=" not in text and "<link" not in text  # nothing to fetch (Chromium checks requests)
+        assert "Plotly.newPlot" in text and len(text) > 1_000_000  # plotly.js itself is inline
+        assert [p.name for p in page.parent.iterdir()] == ["report.html"]  # written atomically, no temp left
+    text = curve_page.read_text(encoding="utf-8")
+    assert "lengths in mm" in text and "max-distance tolerance 0.03" not in text  # 0.03 is a fraction here
+    assert "max-distance tolerance" in text and " mm (3 %)" in text
+
+
+needs_chromium = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed "
+                                    "(/usr/bin/chromium; scripts/test.sh installs it when run as root)")
+
+
+@needs_chromium
+def test_curve_report_loads_in_chromium_with_target_and_result(curve_page, tmp_path):
+    figures, errors, requests = open_in_chromium(curve_page, tmp_path / "profile")
+    assert errors == [] and requests == []
+    by_id = {f["id"]: f for f in figures}
+    assert {"shape", "deviation", "history", "genome", "convergence"} <= set(by_id)
+    assert all(f["drawn"] for f in figures)
+    assert {"target", "result", "control polygon", "ground truth", "worst point"} <= set(by_id["shape"]["names"])
+    assert {"deviation", "worst point", "tolerance"} <= set(by_id["deviation"]["names"])
+
+
+@needs_chromium
+def test_surface_report_loads_in_chromium_with_target_and_result(surface_page, tmp_path):
+    page, result = surface_page
+    figures, errors, requests = open_in_chromium(page, tmp_path / "profile")
+    assert errors == [] and requests == []
+    by_id = {f["id"]: f for f in figures}
+    assert {"surfaces", "history", "convergence"} <= set(by_id) and all(f["drawn"] for f in figures)
+    side = dict(zip(by_id["surfaces"]["names"], by_id["surfaces"]["types"]))
+    assert side == {"target": "mesh3d", "result": "mesh3d", "control mesh": "scatter3d"}
+    # the history slider holds the template and every step up to the result (two traces per step)
+    assert len(by_id["history"]["names"]) == 2 * min(len(result.genome) + 1, html_report.HISTORY_STEPS)
+
+
+def test_the_surface_figure_colours_the_result_by_its_distance_in_model_units(surface_page):
+    page, result = surface_page
+    text = html.unescape(page.read_text(encoding="utf-8"))
+    assert "distance to target, mm" in text and "lengths in mm" in text
+    assert "the paper's mixed mean distance" in text
+
+
+def test_bad_results_raise_typed_errors(tmp_path):
+    from gsr_cad.reconstruct.result import Result
+
+    surface = Result(kind="surface", config={}, seed=None, genome=(), metrics={}, history=[])
+    with pytest.raises(InputError):
+        html_report.curve_html(surface, np.zeros((5, 2)), tmp_path / "r.html")
+    curve = Result(kind="curve", config={}, seed=None, genome=(), metrics={}, history=[],
+                   control_points=np.zeros((4, 2)))
+    with pytest.raises(InputError):
+        html_report.surface_html(curve, tmp_path / "r.html")
+    assert not (tmp_path / "r.html").exists()
