@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
 from gsr_cad.errors import ExportError, GsrError
@@ -31,7 +32,8 @@ _CACHE = "_gsr_export_model"
 
 @dataclasses.dataclass(frozen=True)
 class CurveSpline:
-    """A curve result as CAD sees it: poles, degree and the clamped uniform knot vector on [0, 1]."""
+    """A curve result as CAD sees it: poles, degree and the clamped knot vector on [0, 1] (uniform, or with
+    repeated knots at corners and where a closed curve was cut open; see ``bspline.clamped_form``)."""
 
     poles: np.ndarray
     degree: int
@@ -49,7 +51,7 @@ class CurveSpline:
 
     @property
     def n_spans(self) -> int:
-        return len(self.poles) - self.degree
+        return len(self.breakpoints) - 1
 
     @property
     def scale(self) -> float:
@@ -64,11 +66,11 @@ class CurveSpline:
 
     def points(self, params: np.ndarray) -> np.ndarray:
         """Our curve at ``params`` in [0, 1]."""
-        return bspline.evaluate(self.poles, np.asarray(params, dtype=float), self.degree)
+        return np.asarray(BSpline(self.knots, self.poles, self.degree)(np.asarray(params, dtype=float)))
 
     def bezier(self) -> np.ndarray:
-        """Exact Bezier pieces ``(n_spans, degree + 1, 2)``; span ``j`` covers ``[j, j + 1] / n_spans``."""
-        return bspline.bezier_segments(self.poles, self.degree)
+        """Exact Bezier pieces ``(n_spans, degree + 1, 2)``, one per knot span, in order."""
+        return bspline.bezier_pieces(self.knots, self.poles, self.degree)
 
     def params(self, per_span: int) -> np.ndarray:
         """``per_span`` parameters per knot span, both ends included."""
@@ -89,7 +91,15 @@ def curve_spline(result: Any) -> CurveSpline:
         raise ExportError("curve control points must be finite [x, y] rows")
     if len(poles) < degree + 1:
         raise ExportError(f"a degree-{degree} curve needs at least {degree + 1} control points, got {len(poles)}")
-    return CurveSpline(poles, degree, bspline.clamped_uniform_knots(len(poles), degree))
+    cfg = result.config or {}
+    closed, corners = bool(cfg.get("closed", False)), tuple(cfg.get("corners") or ())
+    if not closed and not corners:
+        return CurveSpline(poles, degree, bspline.clamped_uniform_knots(len(poles), degree))
+    try:  # closed (periodic) or cornered: its exact clamped form, corners as repeated knots
+        knots, clamped = bspline.clamped_form(poles, degree, closed, corners)
+    except GsrError as exc:
+        raise ExportError(f"the curve's closed/corner form is invalid: {exc}") from None
+    return CurveSpline(clamped, degree, knots)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -57,7 +57,7 @@ BAD_FILES = {
     "nan.csv": "0,0\n1,nan\n2,2\n3,3\n",
     "inf.csv": "0,0\n1,1\n2,-inf\n3,3\n",
     "three.csv": "0,0\n1,1\n2,2\n",
-    "cols.csv": "0,0,0\n1,1,0\n2,2,0\n3,3,0\n",
+    "cols.csv": "0,0,0,0\n1,1,0,0\n2,2,0,0\n3,3,0,0\n",
     "equal.csv": "2,2\n2,2\n2,2\n2,2\n2,2\n",
     "dups.csv": "0,0\n1,1\n1,1\n2,3\n3,3\n",
 }

@@ -49,7 +49,7 @@ def test_surface_writes_result_meshes_report_and_blender_script(gsr, tmp_path, e
     # a result read back from result.json (no target, no snapshots) still draws its final mesh
     again = plots.surface_report(result, tmp_path / "again.png")
     assert again.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "data->fit mean" in res.out and "fit->data mean" in res.out and "wrote" in res.out
+    assert "data to fit:" in res.out and "fit to data:" in res.out and "wrote" in res.out
     if find_host("blender") is None:
         pytest.skip("Blender is not installed: the replay script is written but not run")
     check = gsr("validate", out)

@@ -128,9 +128,10 @@ def config_overrides(args: argparse.Namespace, config_cls: type) -> dict[str, An
 
 
 def write_control_points(path: Path, points: np.ndarray) -> Path:
-    """``x,y`` CSV of the control points at full double precision, atomically."""
-    rows = "".join(f"{x:.17g},{y:.17g}\n" for x, y in np.asarray(points, dtype=float))
-    return write_text(path, "x,y\n" + rows)
+    """``x,y`` (or ``x,y,z``) CSV of the control points at full double precision, atomically."""
+    pts = np.asarray(points, dtype=float)
+    rows = "".join(",".join(f"{v:.17g}" for v in row) + "\n" for row in pts)
+    return write_text(path, ",".join("xyz"[:pts.shape[1]]) + "\n" + rows)
 
 
 def clean_stale(out: Path) -> None:

@@ -176,3 +176,133 @@ def bezier_segments(ctrl: np.ndarray, degree: int = 3) -> np.ndarray:
     c = _check_ctrl(ctrl, degree)
     n_spans = len(c) - degree
     return (_bezier_extraction(len(c), degree) @ c).reshape(n_spans, degree + 1, c.shape[1])
+
+
+# --- closed (periodic) curves and corners ------------------------------------------------------------------------
+#
+# A curve of ``n`` control points is either clamped (open) or periodic (closed: the polygon wraps). A *corner*
+# at control point ``i`` merges the knots ``t[i+1] .. t[i+k]`` into one knot of multiplicity ``k`` (the degree):
+# the curve passes through ``P_i`` there and is only C0. Distinct knot values stay evenly spaced.
+
+
+def check_corners(n_ctrl: int, degree: int, closed: bool, corners) -> tuple[int, ...]:
+    """Sorted corner indices, or InputError when one is out of range or two share knots (closer than ``degree``)."""
+    degree = _check_degree(degree)
+    n_ctrl = _check_n_ctrl(n_ctrl, degree)
+    try:
+        out = tuple(sorted({int(i) for i in corners}))
+    except (TypeError, ValueError):
+        raise InputError(f"corners must be control point indices, got {corners!r}") from None
+    if not out:
+        return out
+    lo, hi = (0, n_ctrl - 1) if closed else (degree, n_ctrl - 1 - degree)
+    if out[0] < lo or out[-1] > hi:
+        raise InputError(f"corner indices must lie in [{lo}, {hi}] for {n_ctrl} control points, got {list(out)}")
+    gaps = np.diff(np.array(out + ((out[0] + n_ctrl,) if closed else ())))
+    if gaps.size and gaps.min() < degree:
+        raise InputError(f"corners must be at least {degree} control points apart, got {list(out)}")
+    return out
+
+
+@functools.lru_cache(maxsize=512)
+def _form_knots(n_ctrl: int, degree: int, closed: bool, corners: tuple[int, ...]) -> np.ndarray:
+    k, n = degree, n_ctrl
+    merged = {j for i in corners for j in range(i + 2, i + k + 1)}  # knot indices equal to their predecessor
+    if not closed:
+        slots = np.arange(k + 1, n)
+        new = np.array([j not in merged for j in slots], dtype=bool)
+        group = np.cumsum(new)
+        inner = group / (group[-1] + 1) if slots.size else np.zeros(0)
+        return _readonly(np.concatenate([np.zeros(k + 1), inner, np.ones(k + 1)]))
+    return _readonly(_periodic_knots(n, k, merged, n + 2 * k + 1))
+
+
+def _periodic_knots(n: int, k: int, merged: set[int], length: int) -> np.ndarray:
+    """``length`` knots ``t[0..]`` of a periodic form (period 1, ``t[k] = 0``); ``merged``: indices equal to
+    their predecessor (taken modulo ``n``)."""
+    merged_mod = {m % n for m in merged}
+    new = np.array([(j % n) not in merged_mod for j in range(k, k + n)], dtype=bool)
+    if not new.any():
+        raise InputError("a closed curve needs at least one simple knot")
+    starts = np.cumsum(new)  # leading merged indices continue the group that closes the previous period
+    period = (starts - starts[0]) / int(starts[-1])
+    j = np.arange(length)
+    return period[(j - k) % n] + np.floor_divide(j - k, n)
+
+
+def form_knots(n_ctrl: int, degree: int = 3, closed: bool = False, corners=()) -> np.ndarray:
+    """Knot vector of a curve form: clamped on [0, 1] (``n + k + 1`` knots) or periodic with period 1
+    (``n + 2k + 1`` knots for the ``n + k`` wrapped coefficients); corners repeat interior knots ``k`` times."""
+    corners = check_corners(n_ctrl, degree, closed, corners)
+    return _form_knots(int(n_ctrl), int(degree), bool(closed), corners).copy()
+
+
+def wrapped(ctrl: np.ndarray, degree: int, closed: bool) -> np.ndarray:
+    """B-spline coefficients of a form: the control points, followed by the first ``degree`` again when closed."""
+    c = np.asarray(ctrl, dtype=np.float64)
+    return np.concatenate([c, c[:degree]]) if closed else c
+
+
+def make_spline(ctrl: np.ndarray, degree: int = 3, closed: bool = False, corners=()) -> BSpline:
+    """SciPy ``BSpline`` of a curve form on the parameter domain [0, 1] (periodic extrapolation when closed)."""
+    degree = _check_degree(degree)
+    c = _check_ctrl(ctrl, degree)
+    t = _form_knots(len(c), degree, bool(closed), check_corners(len(c), degree, closed, corners))
+    return BSpline(t, wrapped(c, degree, closed), degree, extrapolate="periodic" if closed else True)
+
+
+def form_design(n_ctrl: int, params: np.ndarray, degree: int = 3, closed: bool = False, corners=()) -> sp.csr_array:
+    """Sparse ``(m, n_ctrl)`` basis of a curve form at ``params`` (closed: parameters taken modulo 1)."""
+    degree = _check_degree(degree)
+    n_ctrl = _check_n_ctrl(n_ctrl, degree)
+    corners = check_corners(n_ctrl, degree, closed, corners)
+    t = _form_knots(n_ctrl, degree, bool(closed), corners)
+    x = np.asarray(params, dtype=np.float64).reshape(-1)
+    if not closed:
+        return BSpline.design_matrix(_check_params(x), t, degree)
+    full = BSpline.design_matrix(np.mod(x, 1.0), t, degree).tocoo()
+    return sp.csr_array((full.data, (full.row, full.col % n_ctrl)), shape=(x.size, n_ctrl))
+
+
+def clamped_form(control_points: np.ndarray, degree: int = 3, closed: bool = False,
+                 corners=()) -> tuple[np.ndarray, np.ndarray]:
+    """An exact clamped (end-interpolating) representation ``(knots, poles)`` of any curve form on [0, 1].
+
+    Open curves keep their poles; corners appear as interior knots of multiplicity ``degree``. A closed
+    (periodic) curve is cut at parameter 0 by Boehm knot insertion until the knot there has multiplicity
+    ``degree``; its poles then start and end on the curve point at 0 (the same point), and the knot vector
+    gets end multiplicity ``degree + 1``. Evaluating ``BSpline(knots, poles, degree)`` on [0, 1] gives the
+    same curve as :func:`make_spline` up to round-off.
+    """
+    degree = _check_degree(degree)
+    c = _check_ctrl(control_points, degree)
+    corners = check_corners(len(c), degree, closed, corners)
+    t = _form_knots(len(c), degree, bool(closed), corners)
+    if not closed:
+        return t.copy(), c.copy()
+    k, n = degree, len(c)
+    merged = {j for i in corners for j in range(i + 2, i + k + 1)}
+    t = _periodic_knots(n, k, merged, n + 3 * k + 1)  # one spare period end, so insertion at 1 has neighbours
+    coef = c[np.arange(n + 2 * k) % n]
+    for u in (0.0, 1.0):
+        while np.count_nonzero(np.abs(t - u) <= 1e-14) < k:
+            t, coef = _insert_knot(t, coef, u, k)
+        t[np.abs(t - u) <= 1e-14] = u
+    first = int(np.flatnonzero(t == 0.0)[0])
+    inner = t[(t > 0.0) & (t < 1.0)]
+    knots = np.concatenate([np.zeros(k + 1), inner, np.ones(k + 1)])
+    poles = coef[first - 1:first - 1 + len(knots) - k - 1]
+    return knots, poles
+
+
+def bezier_pieces(knots: np.ndarray, poles: np.ndarray, degree: int = 3) -> np.ndarray:
+    """The exact Bezier pieces ``(n_pieces, degree + 1, dim)`` of a clamped B-spline with any knot vector (one
+    piece per non-empty knot span, in order), by inserting every interior knot up to multiplicity ``degree``."""
+    k = _check_degree(degree)
+    t, coef = np.asarray(knots, dtype=np.float64).copy(), np.asarray(poles, dtype=np.float64).copy()
+    for u in np.unique(t[k + 1:len(t) - k - 1]):
+        while np.count_nonzero(t == u) < k:
+            t, coef = _insert_knot(t, coef, float(u), k)
+    n_pieces = (len(coef) - 1) // k
+    rows = (np.arange(n_pieces)[:, None] * k + np.arange(k + 1)[None, :]).ravel()
+    return coef[rows].reshape(n_pieces, k + 1, coef.shape[1])

@@ -1,9 +1,11 @@
-"""Open, end-point preserving Chaikin corner cutting.
+"""Chaikin corner cutting: open (end-point preserving) and closed polygons.
 
 One step maps ``P0..P[n-1]`` to ``P0, (P0+P1)/2, 3/4 P1 + 1/4 P2, 1/4 P1 + 3/4 P2, ..., (P[n-2]+P[n-1])/2,
 P[n-1]`` (``2n - 2`` points). This is exactly midpoint knot insertion on the clamped uniform quadratic
 B-spline of the same control points, so every refinement describes the same curve and the polygons
 converge to it: the Chaikin limit is :func:`gsr_cad.geometry.bspline.evaluate` with ``degree=limit_degree``.
+On a closed polygon every edge is cut at 1/4 and 3/4 (``2n`` points): the limit is the periodic uniform
+quadratic B-spline (:func:`gsr_cad.geometry.bspline.make_spline` with ``closed=True``).
 Refinement matrices depend only on the point count and are cached as read-only sparse matrices.
 """
 
@@ -72,3 +74,24 @@ def refine(points: np.ndarray, levels: int = 1) -> np.ndarray:
     if not np.all(np.isfinite(p)):
         raise InputError("Chaikin refinement needs finite points")
     return np.asarray(refinement_matrix(len(p), levels) @ p)
+
+
+@functools.lru_cache(maxsize=256)
+def _closed_refinement(n_ctrl: int, levels: int) -> sp.csr_matrix:
+    if levels == 0:
+        return _freeze(sp.identity(n_ctrl, format="csr"))
+    prev = _closed_refinement(n_ctrl, levels - 1)
+    n = prev.shape[0]
+    i = np.arange(n)
+    rows = np.concatenate([2 * i, 2 * i, 2 * i + 1, 2 * i + 1])
+    cols = np.concatenate([i, (i + 1) % n, i, (i + 1) % n])
+    vals = np.concatenate([np.full(n, 0.75), np.full(n, 0.25), np.full(n, 0.25), np.full(n, 0.75)])
+    return _freeze(sp.csr_matrix(sp.csr_matrix((vals, (rows, cols)), shape=(2 * n, n)) @ prev))
+
+
+def refine_closed(points: np.ndarray, levels: int = 1) -> np.ndarray:
+    """Apply ``levels`` closed Chaikin steps to a closed polygon ``(n, dim)`` (``2**levels * n`` points)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] < 1 or not np.all(np.isfinite(p)):
+        raise InputError(f"Chaikin refinement needs a finite (n, dim) point array, got shape {p.shape}")
+    return np.asarray(_closed_refinement(_check_n(len(p)), _check_levels(levels)) @ p)

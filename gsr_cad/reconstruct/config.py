@@ -161,7 +161,8 @@ class CurveConfig:
         "Largest random move of a control point per axis, as a fraction of the box size; 0: points never move.")
     max_control_points: int = _field(
         0,
-        "Most control points a genome may have; 0: automatic (half the target points, at most 200).")
+        "Most control points a curve may have; 0: no cap (a segment between corners gets at most two thirds of "
+        "its points).")
     fit_iterations: int = _field(
         25,
         "Foot-point iterations of each least-squares placement (more: slower, slightly tighter).")
@@ -184,12 +185,27 @@ class CurveConfig:
     stall_generations: int = _field(15, _GA_HELP["stall_generations"])
     max_seconds: float = _field(0.0, _GA_HELP["max_seconds"])
     units: str = _field("model", UNITS_HELP, choices=tuple(UNITS))
+    closure: Literal["auto", "closed", "open"] = _field(
+        "auto",
+        "Closed (periodic, no seam) or open curve; auto: closed when the last point is within about three sample "
+        "spacings of the first (--closed / --open on the command line).")
+    find_corners: bool = _field(
+        True,
+        "Propose C0 corners (a knot of multiplicity = degree: the curve passes through that control point) at sharp "
+        "turns of the data; off: smooth curves only.")
+    corner_angle: float = _field(
+        25.0, "Smallest turning angle, in degrees, of a data point proposed as a corner.")
+    search_points: int = _field(
+        3000,
+        "The search fits at most about this many of the points (metrics and the tolerance check use all of them); "
+        "0: all points.")
 
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
         paper = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
-                     generations=300, stall_generations=0, threshold=-1.0)
+                     generations=300, stall_generations=0, threshold=-1.0, closure="open", find_corners=False,
+                     search_points=0)
         return _preset(cls, "curve", name, paper, overrides)
 
     def validated(self) -> CurveConfig:
@@ -219,6 +235,12 @@ class CurveConfig:
             raise ConfigError("stall-generations and max-control-points must be >= 0")
         if self.max_control_points and self.max_control_points < 4:
             raise ConfigError("max-control-points must be at least 4 (the template has 4)")
+        if self.closure not in ("auto", "closed", "open"):
+            raise ConfigError(f"closure must be auto, closed or open, not {self.closure!r}")
+        if not (_real(self.corner_angle) and 0.0 < self.corner_angle < 180.0):
+            raise ConfigError(f"corner-angle must lie in (0, 180) degrees, not {self.corner_angle!r}")
+        if not (isinstance(self.search_points, int) and (self.search_points == 0 or self.search_points >= 100)):
+            raise ConfigError(f"search-points must be 0 or at least 100, not {self.search_points!r}")
         _check_units(self)
         _ranges(self, CURVE_LIMITS)
         return self

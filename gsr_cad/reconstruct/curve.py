@@ -1,18 +1,23 @@
-"""Curve reconstruction: ordered 2D points -> control polygon + the op history that builds it.
+"""Curve reconstruction: ordered 2D or 3D points -> control polygon + the op history that builds it.
 
-The GA (paper, section 3) evolves genomes of ``add_point``/``move_point`` ops on the paper's 4-point
+The GA (paper, section 3) evolves genomes of ``add_point``/``move_point``/``corner`` ops on a 4-point
 template. Two evaluations are offered:
 
-* ``preset="paper"``: the paper exactly - the genome's own positions, fitness = sum of index-wise
-  distances between the target and as many evenly spaced curve samples.
-* ``preset="default"`` (Lamarckian): curve points are linear in the control points, so each genome is
-  scored after the least-squares placement of its control points (geometric, foot-point corrected
-  distances); the score depends on the genome only through its number of points ``n`` and is cached per
-  ``n``. The cost ``exp(2 n ln m / m) * max(rms / diag, tolerance)^2`` is the exponential of a BIC per
-  sample: exact data get their exact count back, noisy data are not over-fitted, and smooth data use the
-  fewest points that reach the tolerance. The winner's placement is written back into its history
-  (insertions at their final positions, then ``move_point`` ops for the template's free points), so the
-  saved genome replays exactly to the result.
+* ``preset="paper"``: the paper exactly - open curves, the genome's own positions, fitness = sum of
+  index-wise distances between the target and as many evenly spaced curve samples.
+* ``preset="default"`` (Lamarckian): the data are checked first (unordered points are put in
+  nearest-neighbour order with a warning, or refused; a closed outline is detected and becomes a periodic
+  B-spline; sharp turns become corner candidates; long inputs are subsampled for the search). A genome's
+  structure - its number of points ``n`` and its corners, each matched to the nearest candidate - is scored
+  after the least-squares placement of its control points, segment by segment between corners (see
+  :mod:`gsr_cad.reconstruct.curve_model`), with errors measured both ways (data -> curve and curve -> data).
+  The cost ``exp(2 n ln m / m) * max(rms / diag, tolerance, excursion)^2`` is the exponential of a BIC per
+  sample: exact data get their exact count back and noisy data are not over-fitted. With ``max_distance`` X
+  the floor is X and structures missing X (both ways) are penalised, so the count is the fewest that meets
+  X. The memetic step searches corner sets and counts around the best genome; the winner's placement is
+  written back into its history (insertions at their final positions, ``move_point`` ops for the template's
+  points, then ``corner`` ops), so the saved genome replays exactly to the result. With X the final curve is
+  checked on all points; a miss is reported in ``metrics["tolerance_met"]``.
 """
 
 from __future__ import annotations
@@ -21,21 +26,62 @@ import dataclasses
 import math
 import os
 import time
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .. import genome as genome_mod
 from ..errors import OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
-from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine
-from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_curve
+from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
+from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_spline, two_sided
 from ..ops import curve as curve_ops
 from .config import CurveConfig
+from .curve_model import CurveModel
 from .inputs import CurveTarget, curve_target
 from .result import Result
+
+
+class CurveWarning(UserWarning):
+    """Something about the curve data the user should know (reordered points, a missed tolerance)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PreparedCurve:
+    """The data as the search sees them: ordered points (closing duplicate dropped), closure, corner
+    candidates and the subsample searched (both as indices into ``points``)."""
+
+    points: np.ndarray
+    closed: bool
+    reordered: bool
+    candidates: np.ndarray
+    search: np.ndarray
+    angles: np.ndarray
+
+
+def prepare_curve(points: np.ndarray, config: CurveConfig) -> PreparedCurve:
+    """Order, closure, corner candidates and search subsample of curve data (warns when it reorders)."""
+    pts = np.asarray(points, dtype=np.float64)
+    reordered = False
+    if is_unordered(pts):
+        pts = pts[nearest_neighbour_order(pts)]
+        reordered = True
+        warnings.warn("the points are not in curve order; they were put in nearest-neighbour order",
+                      CurveWarning, stacklevel=3)
+    closed = detect_closed(pts) if config.closure == "auto" else config.closure == "closed"
+    diag = float(np.linalg.norm(np.ptp(pts, axis=0)))
+    if closed and len(pts) > 4 and np.linalg.norm(pts[-1] - pts[0]) <= 1e-9 * diag:
+        pts = pts[:-1]
+    use_corners = config.find_corners and config.polish
+    cand, angles = (corner_candidates(pts, closed, config.corner_angle, with_angles=True) if use_corners
+                    else (np.zeros(0, dtype=np.int64), np.zeros(0)))
+    limit = config.search_points if config.polish else 0
+    search = subsample(pts, limit, cand, closed) if limit else np.arange(len(pts))
+    return PreparedCurve(pts, closed, reordered, cand, search, angles)
 
 
 class CurveProblem:
@@ -44,44 +90,60 @@ class CurveProblem:
     def __init__(self, target: CurveTarget, config: CurveConfig):
         self.target = target
         self.config = config
-        self.points = target.points
-        self.m = len(target.points)
+        self.prepared = prepare_curve(target.points, config)
+        prep = self.prepared
+        self.closed = prep.closed
+        self.points = prep.points[prep.search]
+        self.m = len(self.points)
         self.diag = target.diagonal
         self.degree = 2 if config.scheme == "chaikin" else 3
-        self.template = curve_ops.template(self.points, margin=config.bounds_margin)
+        self.template = curve_ops.template(self.points, margin=config.bounds_margin, closed=self.closed,
+                                           degree=self.degree)
         self.lo = np.asarray(self.template.lo, dtype=np.float64)
         self.hi = np.asarray(self.template.hi, dtype=np.float64)
-        cap = config.max_control_points or min(max(4, self.m // 2), 200)
-        self.max_ctrl = max(4, min(cap, self.m))
-        self._fits: dict[int, tuple[CurveFit, float, float]] = {}
+        self.max_ctrl = config.max_control_points or max(4, self.m)
         self._chord = chord_length_params(self.points)
-        self._states: dict[tuple, curve_ops.Polygon] = {}
+        self._trie: dict = {}
+        self._trie_size = 0
+        subsampled = len(self.points) < len(prep.points)
+        # The search samples the curve more coarsely than the final check (and maybe fewer points): a margin.
+        limit = config.max_distance * (0.9 if subsampled else 0.97) if config.max_distance else None
+        cand = np.searchsorted(prep.search, prep.candidates)
+        self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
+                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle])
+        self.limit = limit
+        self._sites = self.points[cand] if cand.size else np.zeros((0, self.points.shape[1]))
+        self._site_tree = cKDTree(self._sites) if cand.size else None
+        self._best_structures: dict[tuple[int, ...], tuple[float, int]] = {}
 
     # --- GA protocol -------------------------------------------------------------------------------
     def _state(self, prefix: tuple) -> curve_ops.Polygon:
-        """The polygon after ``prefix`` with invalid ops skipped (repair semantics), cached by prefix.
+        """The polygon after ``prefix`` with invalid ops skipped (repair semantics), cached in a trie of ops.
 
-        Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent.
+        Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent; the
+        trie makes a look-up linear in the genome's length (long histories of real curves have hundreds of ops).
         """
-        state = self._states.get(prefix)
-        if state is None:
-            if not prefix:
-                return self.template
-            parent = self._state(prefix[:-1])
-            try:
-                state = prefix[-1].apply(parent)
-            except OpError:
-                state = parent
-            if len(self._states) >= 200_000:
-                self._states.clear()
-            self._states[prefix] = state
+        state, children = self.template, self._trie
+        for op in prefix:
+            entry = children.get(op)
+            if entry is None:
+                try:
+                    nxt = op.apply(state)
+                except OpError:
+                    nxt = state
+                entry = children[op] = (nxt, {})
+                self._trie_size += 1
+            state, children = entry
+        if self._trie_size >= 200_000:
+            self._trie, self._trie_size = {}, 0
         return state
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
         p_add = self.config.p_add if poly.n < self.max_ctrl else 0.0
+        p_corner = 0.02 if len(self._sites) else 0.0
         return curve_ops.random_op(rng, poly, p_add=p_add, move_scale=self.config.move_scale,
-                                   local_add=self.config.local_add)
+                                   local_add=self.config.local_add, corner_sites=self._sites, p_corner=p_corner)
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         kept: list = []
@@ -103,128 +165,169 @@ class CurveProblem:
             kept.append(op)
         return tuple(kept)
 
+    def structure(self, genome: tuple) -> tuple[tuple[int, ...], int]:
+        """A genome's corner set (search indices of the candidates nearest its corner points) and point count."""
+        poly = self._state(tuple(genome))
+        if not poly.corners or self._site_tree is None:
+            return (), poly.n
+        _, near = self._site_tree.query(poly.points[list(poly.corners)])
+        cand = self.model.candidates[np.unique(np.atleast_1d(near))]
+        return tuple(int(c) for c in np.sort(cand)), poly.n
+
     def cost(self, genome: tuple) -> float:
         poly = self._state(tuple(genome))
         if self.config.polish:
-            return self.structure_cost(poly.n)
+            return self.structure_cost(*self.structure(genome))
         if self.config.fitness == "index":
             samples = bspline.sample_uniform(poly.points, self.m, self.degree)
             return float(index_wise(samples, self.points).sum())
         _, dist = foot_points(poly.points, self.points, self._chord, degree=self.degree)
         return float(dist.sum())
 
-    def local_search(self, genome: tuple) -> tuple:
-        """Memetic step on the best genome (Lamarckian mode only): walk the number of points.
+    def structure_cost(self, corners: tuple[int, ...], n: int) -> float:
+        """The penalised error of the best placement of ``n`` control points with these corners."""
+        counts = self.model.allocation(corners, n)
+        if counts is None:  # too few points for this corner set (or the limit): graded by the shortfall
+            low = self.model.minimum_total(corners)
+            return 1e15 if low is None else 1e12 * (1.0 + abs(low - n))
+        rms, both, excess = self.model.errors(corners, counts)
+        grow = math.exp(2.0 * n * math.log(self.m) / self.m)
+        if self.limit is None:
+            return grow * max(rms, self.config.tolerance, excess) ** 2
+        cost = grow * max(rms, self.config.tolerance, self.limit) ** 2 * (1.0 + 1e-3 * rms / self.limit)
+        if both > self.limit:
+            cost *= 1e6 * (both / self.limit) ** 2  # infeasible: worse, and graded by the miss
+        return cost
 
-        The cost depends on the genome only through its point count, so trying counts near the current
-        one is a handful of cached look-ups; the walk moves to the first better count among
-        +1..+3 and -1..-2 (insertions appended at the middle of the longest polygon edge, or the last
-        insertions dropped) until none is better.
+    def local_search(self, genome: tuple) -> tuple:
+        """Memetic step on the best genome (Lamarckian mode only): search corner sets and point counts.
+
+        From the genome's corners and from every candidate, corners are dropped one at a time while that does
+        not raise the cost, then candidates added while that lowers it; each corner set gets its best count
+        (the fewest meeting the limit, or a walk of +1..+3 / -1..-2 points on the penalised error). Returns
+        the genome of the best structure (a clean history at the current placement).
         """
         if not self.config.polish:
             return genome
-        best, best_cost = tuple(genome), self.cost(genome)
-        for _ in range(self.max_ctrl):
-            for step in (1, 2, 3, -1, -2):
-                candidate = self._resized(best, step)
-                if candidate is not None and (cost := self.cost(candidate)) < best_cost:
-                    best, best_cost = candidate, cost
-                    break
-            else:
-                break
-        return best
+        corners, n = self.structure(genome)
+        pool = tuple(int(c) for c in self.model.candidates)
+        walks = [self._corner_walk(self._valid(pool), n)]  # from every candidate, dropping those that do not pay
+        own = self._valid(corners)
+        if own != walks[0][1]:
+            walks.append((*self._count_walk(own, n)[:1], own, self._count_walk(own, n)[1]))
+        best = min(walks, key=lambda r: (r[0], len(r[1])))
+        _, best_corners, best_n = best
+        counts = self.model.allocation(best_corners, best_n)
+        if counts is None:
+            return genome
+        ctrl, idx = self.model.assemble(best_corners, counts)
+        built = self.history(ctrl, idx, self.template)
+        try:
+            genome_mod.replay(self.template, built)
+        except OpError:
+            return genome
+        return built
 
-    def _resized(self, genome: tuple, step: int) -> tuple | None:
-        """``genome`` with ``step`` insertions appended (> 0) or its last ``-step`` insertions removed."""
-        if step < 0:
-            adds = [i for i, op in enumerate(genome) if isinstance(op, curve_ops.AddPoint)]
-            if len(adds) < -step:
-                return None
-            drop = set(adds[step:])
-            kept = genome_mod.repair(self.template, (op for i, op in enumerate(genome) if i not in drop))[0]
-            return kept if len(kept) >= self.config.min_ops else None
-        out = list(genome)
-        poly = self._state(tuple(out))
-        for _ in range(step):
-            if poly.n >= self.max_ctrl:
-                return None
-            seg = np.linalg.norm(np.diff(poly.points, axis=0), axis=1)
-            i = int(np.argmax(seg))
-            mid = 0.5 * (poly.points[i] + poly.points[i + 1])
-            op = curve_ops.AddPoint(i + 1, (float(mid[0]), float(mid[1])))
-            try:
-                poly = op.apply(poly)
-            except OpError:
-                return None
-            out.append(op)
-        return tuple(out)
+    def seed_genomes(self) -> list[tuple]:
+        """The structure search's result from every corner candidate, as a first-generation genome."""
+        return [self.local_search(())] if self.config.polish else []
+
+    def _valid(self, corners: tuple[int, ...]) -> tuple[int, ...]:
+        """Drop repeated corners (and, on open curves, corners on the end points)."""
+        kept: list[int] = []
+        for c in sorted(corners):
+            if (kept and c - kept[-1] < 1) or (not self.closed and (c < 1 or c > self.m - 2)):
+                continue
+            kept.append(c)
+        if self.closed and len(kept) > 1 and kept[0] + self.m - kept[-1] < 1:
+            kept.pop()
+        return tuple(kept)
+
+    def _count_walk(self, corners: tuple[int, ...], n: int) -> tuple[float, int]:
+        """Best count for a corner set: the fewest meeting the limit, or a local walk on the cost."""
+        if corners in self._best_structures:
+            return self._best_structures[corners]
+        low = self.model.minimum_total(corners)
+        if low is None:
+            out = (math.inf, n)
+        elif self.limit is not None:
+            out = (self.structure_cost(corners, low), low)
+        else:
+            best_n, best_cost = max(n, low), self.structure_cost(corners, max(n, low))
+            for _ in range(100_000):
+                for step in (1, 2, 3, -1, -2):
+                    cand = best_n + step
+                    if cand < low or cand > self.max_ctrl:
+                        continue
+                    if (c := self.structure_cost(corners, cand)) < best_cost:
+                        best_n, best_cost = cand, c
+                        break
+                else:
+                    break
+            out = (best_cost, best_n)
+        self._best_structures[corners] = out
+        return out
+
+    def _corner_walk(self, corners: tuple[int, ...], n: int) -> tuple[float, tuple[int, ...], int]:
+        corners = self._valid(corners)
+        cost, best_n = self._count_walk(corners, n)
+        if math.isfinite(cost):
+            self._tighten(best_n)
+        pool = self._valid(tuple(int(c) for c in self.model.candidates))
+        for _ in range(4):
+            changed = False
+            for c in list(corners):  # drop corners that do not pay
+                trial = tuple(x for x in corners if x != c)
+                t_cost, t_n = self._count_walk(trial, best_n)
+                if t_cost <= cost:
+                    corners, cost, best_n, changed = trial, t_cost, t_n, True
+                    self._tighten(best_n)
+            for c in pool:  # add candidates that do
+                if c in corners:
+                    continue
+                trial = self._valid(tuple(sorted(corners + (c,))))
+                if c not in trial:
+                    continue
+                t_cost, t_n = self._count_walk(trial, best_n)
+                if t_cost < cost:
+                    corners, cost, best_n, changed = trial, t_cost, t_n, True
+                    self._tighten(best_n)
+            if not changed:
+                break
+        return cost, corners, best_n
+
+    def _tighten(self, total: int) -> None:
+        if self.limit is not None:
+            self.model.upto = total if self.model.upto is None else min(self.model.upto, total)
 
     def perturb(self, gene: genome_mod.Op, rng: np.random.Generator) -> genome_mod.Op:
         return curve_ops.perturb_op(gene, rng, 0.02 * self.diag)
 
-    # --- Lamarckian evaluation ---------------------------------------------------------------------
-    def fit(self, n: int) -> tuple[CurveFit, float, float]:
-        """Least-squares control polygon of ``n`` points with its relative RMS and max distance (cached)."""
-        if n not in self._fits:
-            # Warm-start from the fit with one point fewer: deterministic whatever order the GA asks in.
-            warm = self.fit(n - 1)[0].params if n > 4 and self.config.fitness == "geometric" else None
-            fit = fit_curve(self.points, n, self.degree, parametrization=self.config.fitness,
-                            iterations=self.config.fit_iterations, lo=self.lo, hi=self.hi, warm_params=warm)
-            limit = self.config.max_distance
-            if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
-                # A CAD tolerance is a maximum: near misses get a minimax placement before being judged.
-                fit = minimax_refine(self.points, fit, self.degree, lo=self.lo, hi=self.hi)
-            self._fits[n] = (fit, fit.rms / self.diag, float(fit.distances.max()) / self.diag)
-        return self._fits[n]
+    # --- histories ---------------------------------------------------------------------------------
+    def result_template(self, ctrl: np.ndarray) -> curve_ops.Polygon:
+        """The template with its box grown (if needed) to hold every final control point."""
+        t = self.template
+        lo = np.minimum(self.lo, ctrl.min(axis=0))
+        hi = np.maximum(self.hi, ctrl.max(axis=0))
+        return curve_ops.Polygon(t.points, tuple(lo.tolist()), tuple(hi.tolist()), t.closed, (), t.degree)
 
-    def final_fit(self, n: int, hurry: bool = False) -> CurveFit:
-        """The search's fit of ``n`` points refined to convergence (done once, for the winner).
+    def history(self, ctrl: np.ndarray, corners: tuple[int, ...], template: curve_ops.Polygon) -> tuple:
+        """A clean op history that builds ``ctrl`` with ``corners`` from ``template``.
 
-        With a max-distance limit, placements that meet it win over those that do not; then the lower
-        RMS wins (a converged least-squares fit beats a minimax one whenever both meet the limit).
+        Open: the points between the template's second and third are inserted at their positions, the two
+        free template points moved onto theirs. Closed: the points after the first are inserted, then every
+        template point is moved. Corners come last.
         """
-        quick = self.fit(n)[0]
-        if self.config.fitness != "geometric" or hurry:
-            return quick
-        fit = fit_curve(self.points, n, self.degree, parametrization="geometric", iterations=400, lo=self.lo,
-                        hi=self.hi, rtol=1e-7, warm_params=quick.params)
-        limit = self.config.max_distance
-
-        def rank(f: CurveFit) -> tuple[bool, float]:
-            misses = limit is not None and float(f.distances.max()) / self.diag > limit
-            return misses, f.rms
-
-        return min((fit, quick), key=rank)
-
-    def structure_cost(self, n: int) -> float:
-        _, rms_rel, max_rel = self.fit(n)
-        cost = math.exp(2.0 * n * math.log(self.m) / self.m) * max(rms_rel, self.config.tolerance) ** 2
-        if self.config.max_distance is not None and max_rel > self.config.max_distance:
-            cost *= 1e6 * (max_rel / self.config.max_distance) ** 2  # infeasible: worse, and graded by the miss
-        return cost
-
-    def polished(self, genome: tuple, hurry: bool = False) -> tuple:
-        """The genome rewritten onto the least-squares placement, as a clean modelling history.
-
-        The genome's insertions are kept in order (same indices) but each inserts its point where the
-        placement puts it; the template's free points then get one ``move_point`` each. Replaying the
-        result gives the placement exactly (up to the rounding of ``template + delta``).
-        """
-        adds = [op for op in genome if isinstance(op, curve_ops.AddPoint)]
-        ids = list(range(self.template.n))
-        for k, op in enumerate(adds):
-            ids.insert(op.index, self.template.n + k)
-        fitted = self.final_fit(len(ids), hurry).ctrl
-        where = {point_id: fitted[i] for i, point_id in enumerate(ids)}
-        placed = tuple(curve_ops.AddPoint(op.index, tuple(float(v) for v in where[self.template.n + k]))
-                       for k, op in enumerate(adds))
-        poly = genome_mod.replay(self.template, placed)
-        moves = []
-        for i in range(1, poly.n - 1):
-            delta = fitted[i] - poly.points[i]
-            if np.any(delta != 0.0):
-                moves.append(curve_ops.MovePoint(i, (float(delta[0]), float(delta[1]))))
-        return placed + tuple(moves)
+        n, t = len(ctrl), template.points
+        fl = curve_ops._floats
+        if self.closed:
+            adds = tuple(curve_ops.AddPoint(i, fl(ctrl[i])) for i in range(1, n - 3))
+            pairs = [(0, 0), (n - 3, 1), (n - 2, 2), (n - 1, 3)]
+        else:
+            adds = tuple(curve_ops.AddPoint(i, fl(ctrl[i])) for i in range(2, n - 2))
+            pairs = [(1, 1), (n - 2, 2)]
+        moves = tuple(curve_ops.MovePoint(i, fl(ctrl[i] - t[j])) for i, j in pairs if np.any(ctrl[i] != t[j]))
+        return adds + moves + tuple(curve_ops.Corner(c) for c in corners)
 
     def threshold(self) -> float | None:
         """Stop threshold in cost units: explicit, automatic (< 0: the paper's mean index distance
@@ -236,20 +339,96 @@ class CurveProblem:
             return 1e-4 * self.diag * self.m
         return None
 
+    # --- the winner --------------------------------------------------------------------------------
+    def final(self, genome: tuple, hurry: bool = False
+              ) -> tuple[np.ndarray, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+        """Refined control points, their corners, and the structure (search corners, counts) of the winner.
 
-def curve_metrics(ctrl: np.ndarray, target: CurveTarget, degree: int) -> dict[str, float]:
-    """Distances of the target to a curve, normalized by the target's bounding-box diagonal."""
-    diag = target.diagonal
-    geo = point_to_curve(ctrl, target.points, degree=degree)
-    idx = index_wise(bspline.sample_uniform(ctrl, len(target), degree), target.points)
-    return {
+        With a limit and a subsampled search, segments that miss it on all points get more control points
+        (up to four rounds). ``hurry``: the search's placement as it is (no refinement, no check)."""
+        corners, n = self.structure(genome)
+        counts = self.model.allocation(corners, n)
+        if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
+            self.model.upto = None
+            low = self.model.minimum_total(corners)
+            counts = self.model.allocation(corners, low) if low is not None else None
+            if counts is None:
+                corners = ()
+                counts = self.model.allocation((), self.model.minimum_total(()))
+        ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
+        full = self.prepared.points
+        if self.config.max_distance is None or hurry:
+            return ctrl, idx, corners, counts
+        keys = self.model.segments(corners)
+        tree = cKDTree(full)
+        data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
+        best = None
+        for _ in range(4):
+            spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
+            there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
+                                             with_samples=True)
+            worst = max(float(there.max()), float(back.max()))
+            if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
+                best = (worst, ctrl, idx, counts)
+            limit = self.config.max_distance * self.diag
+            bad = np.flatnonzero(there > limit)
+            bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
+            if not bad.size:
+                break
+            pos = np.searchsorted(self.prepared.search, bad).clip(0, self.m - 1)
+            hit = set()
+            for p in np.unique(pos):
+                for i, (a, b) in enumerate(keys):
+                    if (a, b) == (-1, -1) or a <= p <= b or a <= p + self.m <= b:
+                        hit.add(i)
+            grown = tuple(min(self.model.max_count(k), c + max(1, c // 10)) if i in hit else c
+                          for i, (k, c) in enumerate(zip(keys, counts)))
+            if grown == counts:
+                break
+            counts = grown
+            ctrl, idx = self.model.assemble(corners, counts, refine=True)
+        else:
+            spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
+            there, back = two_sided(spline, full, self.closed, per_span=32, corners=data_corners)
+            if max(float(there.max()), float(back.max())) < best[0]:
+                best = (max(float(there.max()), float(back.max())), ctrl, idx, counts)
+        if max(float(there.max()), float(back.max())) > best[0]:
+            _, ctrl, idx, counts = best
+        return ctrl, idx, corners, counts
+
+
+def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,
+                  corners: tuple[int, ...] = (), max_distance: float | None = None,
+                  data_corners: np.ndarray | None = None) -> dict[str, Any]:
+    """Distances between data and curve both ways, normalized by the data's bounding-box diagonal.
+
+    ``data_to_fit_*``: each data point to the curve; ``fit_to_data_*``: curve samples (32 per knot span) to
+    the data's local model (:func:`~gsr_cad.geometry.distance.data_model`, sharp at ``data_corners``; closed
+    data with their closing piece). ``tolerance_met`` when ``max_distance`` is given: both maxima within it.
+    The older keys (``mean_distance``, ``max_distance``, ...) are data -> curve.
+    """
+    pts = target.points if isinstance(target, CurveTarget) else np.asarray(target, dtype=np.float64)
+    diag = float(np.linalg.norm(np.ptp(pts, axis=0)))
+    spline = bspline.make_spline(ctrl, degree, closed, corners)
+    geo, back = two_sided(spline, pts, closed, per_span=32, corners=data_corners)
+    idx = index_wise(spline(np.linspace(0.0, 1.0, len(pts), endpoint=not closed)), pts)
+    out: dict[str, Any] = {
         "mean_distance": float(geo.mean() / diag),
         "max_distance": float(geo.max() / diag),
         "rms_distance": float(np.sqrt(np.mean(geo ** 2)) / diag),
         "index_mean_distance": float(idx.mean() / diag),
         "index_max_distance": float(idx.max() / diag),
+        "data_to_fit_mean": float(geo.mean() / diag),
+        "data_to_fit_max": float(geo.max() / diag),
+        "fit_to_data_mean": float(back.mean() / diag),
+        "fit_to_data_max": float(back.max() / diag),
         "n_control_points": int(len(ctrl)),
+        "n_corners": len(corners),
+        "closed": bool(closed),
     }
+    if max_distance is not None:
+        out["tolerance_met"] = bool(max(out["data_to_fit_max"], out["fit_to_data_max"]) <= max_distance)
+    return out
 
 
 def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
@@ -276,15 +455,18 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
                       progress: Callable[[GenerationReport], None] | None = None,
                       evaluator: Callable | None = None, should_stop: Callable[[], bool] | None = None,
                       checkpoint: str | os.PathLike[str] | None = None, **overrides: Any) -> Result:
-    """Reconstruct a clamped uniform B-spline (or Chaikin) control polygon and its op history.
+    """Reconstruct a B-spline (or Chaikin) control polygon - open or closed, with corners - and its op history.
 
-    ``points``: an ``(n, 2)`` array of ordered points, a path to a CSV/TXT/NPY file or a
-    :class:`~gsr_cad.reconstruct.inputs.CurveTarget`. ``overrides`` are
-    :class:`CurveConfig` fields. Ctrl-C during the search keeps the best genome found so far
-    (``result.interrupted``), as does ``should_stop()`` turning true (the final refinement is then
-    skipped). With ``checkpoint`` the search state is saved there every generation and, if that file
-    exists, the run continues from it (same seed, same result as an uninterrupted run).
-    Raises :class:`~gsr_cad.errors.InputError` / ``ConfigError`` on bad input.
+    ``points``: an ``(n, 2)`` or ``(n, 3)`` array of ordered points, a path to a CSV/TXT/NPY file or a
+    :class:`~gsr_cad.reconstruct.inputs.CurveTarget`. ``overrides`` are :class:`CurveConfig` fields.
+    The result's ``config`` records ``closed`` (a periodic control polygon) and ``corners`` (control point
+    indices with knot multiplicity = degree); :func:`gsr_cad.geometry.bspline.clamped_form` turns them into
+    an exact clamped knot vector. ``metrics["tolerance_met"]`` says whether ``max_distance`` was met both
+    ways on all points (a :class:`CurveWarning` is issued when not). Ctrl-C during the search keeps the best
+    genome found so far (``result.interrupted``), as does ``should_stop()`` turning true (the final refinement
+    and check are then skipped). With ``checkpoint`` the search state is saved there every generation and, if
+    that file exists, the run continues from it (same seed, same result as an uninterrupted run). Raises :class:`~gsr_cad.errors.InputError` /
+    ``ConfigError`` on bad input (including points that are not in curve order and cannot be ordered).
     """
     started = time.perf_counter()
     target = curve_target(points)
@@ -298,23 +480,41 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
     run: RunResult = engine.run(on_generation=progress, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
     hurry = should_stop is not None and should_stop()
-    final = problem.polished(best, hurry=hurry) if config.polish else best
-    ctrl = genome_mod.replay(problem.template, final).points
-    metrics = curve_metrics(ctrl, target, problem.degree)
+    corners: tuple[int, ...] = ()
+    template = problem.template
+    data_corners = problem.prepared.candidates if config.polish else None
+    if config.polish:
+        fitted, corners, _, _ = problem.final(best, hurry)
+        template = problem.result_template(fitted)
+        final = problem.history(fitted, corners, template)
+    else:
+        final = best
+    ctrl = genome_mod.replay(template, final).points
+    prep = problem.prepared
+    metrics = curve_metrics(ctrl, prep.points, problem.degree, problem.closed, corners, config.max_distance,
+                            data_corners)
     metrics.update({
-        "fitness": float(problem.cost(final)),
+        "fitness": float(problem.cost(best)),
         "fitness_kind": "penalised least-squares error" if config.polish else f"sum of {config.fitness} distances",
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
         "evaluations": run.evaluations,
         "stop_reason": run.stop_reason,
         "n_ops": len(final),
+        "reordered": prep.reordered,
+        "search_points": int(problem.m),
     })
+    if metrics.get("tolerance_met") is False:
+        worst = max(metrics["data_to_fit_max"], metrics["fit_to_data_max"])
+        warnings.warn(f"max distance {worst:.3g} of the diagonal misses the requested {config.max_distance:g}",
+                      CurveWarning, stacklevel=2)
     cfg = config.to_json()
     cfg.update({
         "preset": preset,
-        "template": np.asarray(problem.template.points).tolist(),
-        "bounds": [list(problem.template.lo), list(problem.template.hi)],
+        "template": np.asarray(template.points).tolist(),
+        "bounds": [list(template.lo), list(template.hi)],
+        "closed": bool(problem.closed),
+        "corners": [int(c) for c in corners],
         "target": {"name": target.name, "n_points": len(target), "diagonal": target.diagonal},
     })
     return Result(kind="curve", config=cfg, seed=run.seed, genome=final, metrics=metrics, history=run.history,

@@ -181,7 +181,7 @@ class _PointSet:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class CurveTarget(_PointSet):
-    """Ordered 2D target points with their bounding box and scale."""
+    """Ordered 2D or 3D target points with their bounding box and scale."""
 
     points: np.ndarray
     name: str = "points"
@@ -282,12 +282,12 @@ def _as_points(points: Any, source: str) -> np.ndarray:
 
 
 def validate_curve_points(points: np.ndarray, source: str = "points") -> np.ndarray:
-    """Check an ordered 2D point array; returns it as float64 ``(n, 2)``."""
+    """Check an ordered 2D or 3D point array; returns it as float64 ``(n, 2)`` or ``(n, 3)``."""
     pts = _as_points(points, source)
     if pts.ndim != 2:
-        raise InputError(f"{source}: expected rows of x, y (got an array of shape {pts.shape})")
-    if pts.shape[1] != 2:
-        raise InputError(f"{source}: expected 2 columns (x, y), got {pts.shape[1]}")
+        raise InputError(f"{source}: expected rows of x, y[, z] (got an array of shape {pts.shape})")
+    if pts.shape[1] not in (2, 3):
+        raise InputError(f"{source}: expected 2 or 3 columns (x, y[, z]), got {pts.shape[1]}")
     check_coordinates(pts, source)
     if len(pts) < 4:
         raise InputError(f"{source}: need at least 4 points, got {len(pts)}")

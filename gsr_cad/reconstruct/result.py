@@ -252,8 +252,12 @@ def parse_template(kind: str, config: Mapping[str, Any]) -> Any:
         if len(box) != 2:
             raise _fail("config.bounds", "be two corners [lo, hi]", bounds)
         lo, hi = box
+    closed = config.get("closed", False)
+    if not isinstance(closed, bool):
+        raise _fail("config.closed", "be true or false", closed)
     try:
-        return curve_ops.Polygon(pts, tuple(lo.tolist()), tuple(hi.tolist()))
+        return curve_ops.Polygon(pts, tuple(lo.tolist()), tuple(hi.tolist()), closed=closed,
+                                 degree=2 if config.get("scheme") == "chaikin" else 3)
     except (GsrError, ValueError, TypeError) as exc:
         raise InputError(f"result.json config.template is not a usable polygon: {str(exc).splitlines()[0]}") \
             from None

@@ -1,0 +1,305 @@
+"""The structure search behind the Lamarckian curve evaluation: segments between corners and their counts.
+
+A curve structure is a set of corners (data points where the curve is only C0) and a number of control
+points per *segment* (the data between two consecutive corners, or the ends). Corners are knots of
+multiplicity ``degree`` and distinct knots are evenly spaced, so the whole curve is exactly the chain of
+clamped uniform B-splines fitted to the segments one by one (a closed curve without corners is one
+periodic uniform B-spline). Each segment fit is a least-squares placement with foot-point correction,
+cached per ``(segment, count)``; its error is measured both ways: data -> curve (foot points) and
+curve -> data (curve samples per span and between neighbouring foot points, against the data's polyline),
+so a curve cannot make a loop or bridge a gap far from the data.
+
+With a max-distance tolerance ``X`` each segment gets the fewest control points whose two-sided max
+distance is within ``X`` (exponential then bisection search, no fixed cap below the segment's point count);
+without one, points go one at a time to the segment whose squared error drops most and the total count
+minimises the BIC-like cost of :mod:`gsr_cad.reconstruct.curve`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..geometry import bspline
+from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine
+from ..geometry.distance import curve_to_points, data_model
+from .config import CurveConfig
+
+Key = tuple[int, int]  # a segment: search-point indices (first, last), last may exceed the count (wraps, closed)
+PERIODIC: Key = (-1, -1)  # the whole closed curve as one periodic segment
+
+
+@dataclasses.dataclass(frozen=True)
+class SegmentFit:
+    """One segment's fit and its errors (absolute distances)."""
+
+    fit: CurveFit
+    sse: float
+    data_max: float
+    curve_max: float
+    allowance: float
+
+    @property
+    def both_max(self) -> float:
+        return max(self.data_max, self.curve_max)
+
+
+class CurveModel:
+    """Segment fits and counts for one (search) point set."""
+
+    def __init__(self, points: np.ndarray, closed: bool, candidates: np.ndarray, config: CurveConfig,
+                 degree: int, diag: float, limit: float | None, lo: np.ndarray, hi: np.ndarray,
+                 sharp: np.ndarray | None = None):
+        self.points, self.closed, self.config, self.degree = points, closed, config, degree
+        self.sharp = np.zeros(0, dtype=np.int64) if sharp is None else np.asarray(sharp, dtype=np.int64)
+        self.candidates = np.asarray(candidates, dtype=np.int64)
+        self.m = len(points)
+        self.diag, self.limit, self.lo, self.hi = diag, limit, lo, hi
+        self._fits: dict[tuple[Key, int], SegmentFit] = {}
+        self._models: dict[Key, np.ndarray] = {}
+        self._densified: set[Key] = set()  # segments fitted to their data model (the limit was out of reach)
+        self._need: dict[Key, int] = {}
+        self._lower: dict[Key, int] = {}  # proven lower bounds of need()
+        self.upto: int | None = None  # the best known total: segments needing more are not searched further
+        self._alloc: dict[tuple[int, ...], list[tuple[int, ...]]] = {}
+
+    # --- segments --------------------------------------------------------------------------------------------
+    def segments(self, corners: tuple[int, ...]) -> list[Key]:
+        """Segments of a corner set (search-point indices, sorted)."""
+        if not corners:
+            return [PERIODIC] if self.closed else [(0, self.m - 1)]
+        if self.closed:
+            ends = list(corners) + [corners[0] + self.m]
+            return list(zip(ends[:-1], ends[1:]))
+        ends = [0, *corners, self.m - 1]
+        return list(zip(ends[:-1], ends[1:]))
+
+    def segment_points(self, key: Key) -> np.ndarray:
+        if key == PERIODIC:
+            return self.points
+        return self.points[np.arange(key[0], key[1] + 1) % self.m]
+
+    def min_count(self, key: Key) -> int:
+        """One span per segment; a closed curve with a single corner needs one point more (it wraps)."""
+        if self.closed and key != PERIODIC and key[1] - key[0] == self.m:
+            return self.degree + 2
+        return self.degree + 1
+
+    def max_count(self, key: Key) -> int:
+        """No fixed cap below what the data can support: two thirds of the segment's points (nearer to
+        interpolation the placement is ill-posed), or the user's cap."""
+        size = self.m if key == PERIODIC else key[1] - key[0] + 1
+        if key in self._densified:
+            size *= 4
+        cap = max(self.degree + 1, (2 * size) // 3)
+        return min(cap, self.config.max_control_points) if self.config.max_control_points else cap
+
+    def _fit_points(self, key: Key) -> np.ndarray:
+        """The segment's points, densified along the polyline when it has too few for a well-posed fit, or
+        sampled on the data model when the data alone are too coarse for the limit (see :meth:`need`)."""
+        pts = self.segment_points(key)
+        if key in self._densified:
+            dense = data_model(pts, key == PERIODIC, per_segment=4)
+            return dense[:-1] if key == PERIODIC else dense
+        while len(pts) < 2 * (self.degree + 2) and key != PERIODIC:
+            mid = 0.5 * (pts[:-1] + pts[1:])
+            pts = np.insert(pts, np.arange(1, len(pts)), mid, axis=0)
+        return pts
+
+    def fit(self, key: Key, n: int) -> SegmentFit:
+        """Least-squares fit of ``n`` control points to segment ``key`` (cached), with its two-sided errors."""
+        cached = self._fits.get((key, n))
+        if cached is not None:
+            return cached
+        closed = key == PERIODIC
+        pts = self._fit_points(key)
+        warm = None
+        if self.config.fitness == "geometric":
+            near = [c for (k, c) in self._fits if k == key and c < n]
+            warm = self._fits[(key, max(near))].fit.params if near else None
+        # Parameter correction converges linearly, slowest on sparse data; small segments are cheap, so they
+        # get four times the rounds (an unconverged fit of the true count would lose to more points).
+        rounds = self.config.fit_iterations * (4 if len(pts) <= 400 else 1)
+        fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
+                        hi=self.hi, warm_params=warm, closed=closed)
+        limit = self.limit
+        if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
+            fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)  # a tolerance is a maximum
+        out = self._measure(key, pts, fit)
+        self._fits[(key, n)] = out
+        return out
+
+    def _measure(self, key: Key, pts: np.ndarray, fit: CurveFit) -> SegmentFit:
+        closed = key == PERIODIC
+        model = self._models.get(key)
+        if model is None:  # the data's local model (sharp at the segment's ends, which are corners or ends)
+            model = self._models[key] = data_model(pts, closed)
+        spline = bspline.make_spline(fit.ctrl, self.degree, closed)
+        u = np.sort(fit.params)
+        mids = 0.5 * (u[:-1] + u[1:])
+        if closed:
+            mids = np.concatenate([mids, [np.mod(0.5 * (u[-1] + u[0] + 1.0), 1.0)]])
+        back = curve_to_points(spline, pts, closed, per_span=8, extra=mids, model=model)
+        gaps = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]) if closed else pts, axis=0), axis=1)
+        return SegmentFit(fit, float(np.sum(fit.distances ** 2)), float(fit.distances.max()), float(back.max()),
+                          0.5 * float(gaps.max()))
+
+    def refined(self, key: Key, n: int) -> CurveFit:
+        """The segment's fit of ``n`` points refined to convergence (for the winner only)."""
+        quick = self.fit(key, n)
+        if self.config.fitness != "geometric":
+            return quick.fit
+        pts = self._fit_points(key)
+        fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=60, lo=self.lo, hi=self.hi,
+                        rtol=1e-7, warm_params=quick.fit.params, closed=key == PERIODIC)
+        limit = self.limit
+
+        def rank(f: CurveFit) -> tuple[bool, float]:
+            if limit is None:
+                return False, f.rms
+            return self._measure(key, pts, f).both_max / self.diag > limit, f.rms
+
+        return min((fit, quick.fit), key=rank)
+
+    # --- counts ----------------------------------------------------------------------------------------------
+    def meets(self, key: Key, n: int, limit: float) -> bool:
+        return self.fit(key, n).both_max / self.diag <= limit
+
+    def need(self, key: Key, limit: float, upto: int | None = None) -> int:
+        """Fewest control points meeting ``limit`` both ways (the most allowed when none does).
+
+        With ``upto`` the search stops beyond it and returns ``upto + 1`` when ``upto`` points do not suffice
+        (a lower bound, remembered as such), so a hopeless segment costs few fits.
+        """
+        if key in self._need:
+            return self._need[key]
+        lo, top = self.min_count(key), self.max_count(key)
+        bounded = upto is not None
+        if upto is not None:
+            upto = min(upto, top)
+        bound = self._lower.get(key, lo)
+        if upto is not None and bound > upto:
+            return bound
+        if upto is not None and (self._spans_sharp(key) or not self.meets(key, upto, limit)):
+            self._lower[key] = upto + 1  # one fit settles a segment that cannot beat the best known total
+            return upto + 1
+        if bound == lo and self.meets(key, lo, limit):
+            self._need[key] = lo
+            return lo
+        bad, n = max(lo, bound - 1), max(lo, bound - 1)
+        while True:  # grow by half until met, then bisect between the last miss and the first hit
+            n = min(top, max(n + 1, int(math.ceil(n * 1.5))))
+            if upto is not None and n > upto:
+                if bad < upto and not self.meets(key, upto, limit):
+                    bad = upto
+                if bad >= upto:
+                    self._lower[key] = upto + 1
+                    return upto + 1
+                n = upto
+            if self.meets(key, n, limit):
+                break
+            bad = n
+            if n >= top and key not in self._densified and not bounded:
+                # Coarse data: between samples the curve cannot follow both the points and their model.
+                # Fit the model's samples instead (they include the points) and search again.
+                self._densified.add(key)
+                for stale in [fk for fk in self._fits if fk[0] == key]:
+                    del self._fits[stale]
+                self._lower.pop(key, None)
+                return self.need(key, limit, upto)
+            if n >= top:  # the limit is out of reach: the tried count that came closest
+                tried = [c for (k, c) in self._fits if k == key]
+                best = min(tried, key=lambda c: (self._fits[(key, c)].both_max, c))
+                self._need[key] = best
+                return best
+        good = n
+        while good - bad > 1:
+            mid = (good + bad) // 2
+            if self.meets(key, mid, limit):
+                good = mid
+            else:
+                bad = mid
+        self._need[key] = good
+        return good
+
+    def _spans_sharp(self, key: Key) -> bool:
+        """Whether a sharp candidate (turning twice the corner angle) lies strictly inside the segment: smoothing
+        such a kink within a tolerance takes more points than any structure that keeps it (pruned unfitted)."""
+        if key == PERIODIC:
+            return self.sharp.size > 0
+        inside = (self.sharp > key[0]) & (self.sharp < key[1])
+        inside |= (self.sharp + self.m > key[0]) & (self.sharp + self.m < key[1])
+        return bool(inside.any())
+
+    def allocation(self, corners: tuple[int, ...], n: int) -> tuple[int, ...] | None:
+        """Counts per segment for a total of ``n`` control points (None when ``n`` is too few).
+
+        The smallest allocation meets the tolerance segment by segment (with a limit) or gives every segment
+        its minimum; each further point goes to the segment whose squared error drops most.
+        """
+        keys = self.segments(corners)
+        seq = self._alloc.get(corners)
+        if seq is None:
+            if self.limit is not None:
+                start = tuple(self.need(k, self.limit, self.upto) for k in keys)
+                if self.upto is not None and any(c > self.upto for c in start):
+                    return None  # hopeless against the best known structure (not remembered: bounds may change)
+            else:
+                start = tuple(self.min_count(k) for k in keys)
+            seq = self._alloc[corners] = [start]
+        base = self.chain_total(keys, seq[0])
+        if n < base:
+            return None
+        while base + len(seq) - 1 < n:
+            counts = list(seq[-1])
+            gains = []
+            for i, key in enumerate(keys):
+                if counts[i] >= self.max_count(key):
+                    gains.append(-math.inf)
+                    continue
+                gains.append(self.fit(key, counts[i]).sse - self.fit(key, counts[i] + 1).sse)
+            best = int(np.argmax(gains))
+            if not math.isfinite(gains[best]):
+                return None
+            counts[best] += 1
+            seq.append(tuple(counts))
+        return seq[n - base]
+
+    def chain_total(self, keys: list[Key], counts: tuple[int, ...]) -> int:
+        """Control points of the curve made of segments ``keys`` with ``counts``."""
+        if keys == [PERIODIC]:
+            return int(counts[0])
+        shared = len(keys) if self.closed else len(keys) - 1
+        return int(sum(counts)) - shared
+
+    def minimum_total(self, corners: tuple[int, ...]) -> int | None:
+        """Fewest control points of a corner set (each segment at its minimum, or meeting the limit); None when
+        a segment alone would need more than :attr:`upto`."""
+        self.allocation(corners, 0)
+        seq = self._alloc.get(corners)
+        return None if seq is None else self.chain_total(self.segments(corners), seq[0])
+
+    def errors(self, corners: tuple[int, ...], counts: tuple[int, ...]) -> tuple[float, float, float]:
+        """``(rms, two-sided max, excursion beyond half the largest data gap)`` over the diagonal."""
+        fits = [self.fit(k, c) for k, c in zip(self.segments(corners), counts)]
+        rms = math.sqrt(sum(f.sse for f in fits) / self.m) / self.diag
+        both = max(f.both_max for f in fits) / self.diag
+        excess = max(max(0.0, f.curve_max - f.allowance) for f in fits) / self.diag
+        return rms, both, excess
+
+    # --- assembly --------------------------------------------------------------------------------------------
+    def assemble(self, corners: tuple[int, ...], counts: tuple[int, ...], refine: bool = False
+                 ) -> tuple[np.ndarray, tuple[int, ...]]:
+        """Control points and corner indices of the whole curve (closed with corners: starts at the first)."""
+        keys = self.segments(corners)
+        ctrls = [(self.refined(k, c) if refine else self.fit(k, c).fit).ctrl for k, c in zip(keys, counts)]
+        if keys == [PERIODIC]:
+            return ctrls[0], ()
+        chain = [ctrls[0]] + [c[1:] for c in ctrls[1:]]
+        ctrl = np.vstack(chain)
+        joins = np.cumsum([len(c) - 1 for c in ctrls])
+        if self.closed:
+            return ctrl[:-1], (0, *(int(j) for j in joins[:-1]))
+        return ctrl, tuple(int(j) for j in joins[:-1])
