@@ -14,7 +14,7 @@ from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .bspline import _check_ctrl, _check_degree, _check_params, _knots, sample_uniform
+from .bspline import _check_ctrl, _check_degree, _check_params, _knots
 
 _DENSE_PAIRS = 1 << 13  # point-segment pairs handled by plain broadcasting before the KD-tree prunes
 _PAIR_BLOCK = 1 << 20  # candidate pairs processed at once by the pruned search (bounds memory)

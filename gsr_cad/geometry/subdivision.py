@@ -471,7 +471,7 @@ def _creased_step(level: _Level, layout: _VertexLayout, smooth: sp.csr_matrix, s
     sharpness of the edges that reach 0 (at most 1), as OpenSubdiv's fractional weight does.
     """
     t = level.topo
-    nv, ne = t.n_vertices, t.n_edges
+    nv = t.n_vertices
     n_rows = smooth.shape[0]
     child = _child_sharpness(s)
     here, down = _SharpVertices(t, s), _SharpVertices(t, child)

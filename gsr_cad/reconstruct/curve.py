@@ -38,7 +38,7 @@ from ..errors import OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
 from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
-from ..geometry.distance import chord_length_params, foot_points, index_wise, point_to_spline, two_sided
+from ..geometry.distance import chord_length_params, foot_points, index_wise, two_sided
 from ..ops import curve as curve_ops
 from .config import CurveConfig
 from .curve_model import CurveModel
