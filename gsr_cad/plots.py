@@ -38,6 +38,12 @@ STRIP_STEPS = 8          # panels of the op-history strip
 TOLERANCE_COLOUR = "#2ca02c"
 
 
+
+def _plain(text: str) -> str:
+    """``text`` (a file name, a title) drawn as written: its dollar signs escaped, so matplotlib's mathtext,
+    which the axes' own labels need, never parses user text."""
+    return str(text).replace("$", r"\$")
+
 def _points(a: Any, what: str) -> np.ndarray:
     pts = np.asarray(a, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
@@ -242,7 +248,7 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     curve, dist, per_target = deviation_along_curve(ctrl, target, degree)  # model units
     worst = int(np.argmax(per_target))
     target_info = result.config.get("target")
-    name = title or (target_info.get("name") if isinstance(target_info, dict) else None) or "curve"
+    name = _plain(title or (target_info.get("name") if isinstance(target_info, dict) else None) or "curve")
     genome = tuple(result.genome)
     states = hist.replayed(_curve_template(result, target), genome)
     steps = hist.step_indices(len(genome), STRIP_STEPS) if states is not None else []
@@ -526,7 +532,7 @@ def surface_figure(result: Result, target=None, snapshots: Sequence[Any] | None 
     for snap in snapshots:
         ax_conv.axvline(snap.generation, color="0.6", linewidth=0.8, linestyle=":")
     target_info = cfg.get("target")
-    name = title or (target_info.get("name") if isinstance(target_info, dict) else None) or "surface"
+    name = _plain(title or (target_info.get("name") if isinstance(target_info, dict) else None) or "surface")
     fig.suptitle(f"{name}  (Catmull-Clark, level-{levels} limit)"
                  + (f"; op history left to right: {len(genome)} ops" if strip else "") + f"\n{_subtitle(result)}",
                  fontsize=10)

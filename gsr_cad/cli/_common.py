@@ -191,8 +191,7 @@ def plots_module() -> types.ModuleType:
         from .. import plots
     except ImportError as exc:  # matplotlib is a core dependency; say so if it is broken
         raise ExportError(f"cannot draw report.png: {exc}") from None
-    matplotlib.rcParams["text.usetex"] = False
-    matplotlib.rcParams["text.parse_math"] = False  # names like "$\x$" are shown as written, never parsed
+    matplotlib.rcParams["text.usetex"] = False  # user text is escaped for mathtext (plots._plain)
     return plots
 
 
