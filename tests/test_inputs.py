@@ -29,7 +29,7 @@ def test_reads_csv_with_header_and_npy(tmp_path):
     ("0,0\n1,nan\n2,2\n3,3\n", "NaN"),
     ("0,0\n1,inf\n2,2\n3,3\n", "NaN or infinite"),
     ("0,0\n1,1\n2,2\n", "at least 4 points"),
-    ("0,0,0\n1,1,1\n2,2,2\n3,3,3\n", "2 columns"),
+    ("0,0,0,0\n1,1,1,1\n2,2,2,2\n3,3,3,3\n", "columns"),
     ("1,1\n1,1\n1,1\n1,1\n", "all points are equal"),
     ("0,0\n1,1\n1,1\n2,2\n3,3\n", "duplicates"),
     ("0,0\n1,1,1\n2,2\n3,3\n", "different numbers of columns"),

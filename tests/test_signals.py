@@ -20,14 +20,15 @@ from gsr_cad.reconstruct.samples import get_sample
 
 STOP_SECONDS = 10.0
 """Longest time from the first signal to the exit (5 s asked; the margin is for a loaded test machine)."""
-CORE = {"result.json", "control_points.csv", "control_mesh.obj", "limit_mesh.obj", "report.png", "run.json"}
+CORE = {"result.json", "control_points.csv", "control_mesh.obj", "limit_mesh.obj", "report.png", "report.html",
+        "run.json"}
 RUNS = {
     "curve": ("bspline_12", "c.csv", ("--generations", "40", "--stall-generations", "0", "--population", "100",
                                       "--initial-population", "400")),
     "surface": ("inset_extrude", "t.obj", ("--generations", "3")),
 }
 EXPORTS = {"curve": {"curve_blender.py", "curve_cadquery.py", "curve.dxf", "curve.FCMacro", "curve.scad",
-                     "curve.step", "curve.svg"}}
+                     "curve.step", "curve.svg", "exports.json"}}
 
 
 def _argv(kind: str, d: Path, out: Path) -> list:

@@ -217,8 +217,13 @@ def parse_config(kind: str, raw: Any) -> dict[str, Any]:
             out[key] = typed(value, hints[key], what)
         elif key == "preset":
             out[key] = typed(value, Literal[PRESETS], what)  # type: ignore[valid-type]
-        elif key in ("template", "bounds"):
+        elif key == "template":
             out[key] = value  # shape-checked by parse_template
+        elif key == "bounds":
+            box = _points(value, what, (2, 3), min_rows=2)
+            if len(box) != 2:
+                raise _fail(what, "be two corners [lo, hi]", value)
+            out[key] = value
         elif key == "patch_tolerance":
             if not (_is_real(value) and math.isfinite(value) and 0 < value <= 1):
                 raise _fail(what, "be a number in (0, 1]", value)
