@@ -141,6 +141,14 @@ class BlenderExporter(Exporter):
     suffixes = ("_blender.py",)
     host = "blender"
 
+
+    def refuses(self, result: Any) -> str | None:
+        cfg = (result.config or {}) if result.kind == "curve" else {}
+        if cfg.get("closed") or cfg.get("corners"):
+            return ("its host script replays open curves without corners only (closed and cornered curves: "
+                    "step, dxf, svg, scad, cadquery)")
+        return None
+
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         model = surface_model(result)
         if model.levels > MAX_LEVELS:

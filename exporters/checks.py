@@ -64,6 +64,7 @@ class StepCurve:
     first: float
     last: float
     samples: np.ndarray
+    periodic: bool = False
 
 
 def read_step_curves(path: Path, params: np.ndarray) -> list[StepCurve]:
@@ -87,7 +88,8 @@ def read_step_curves(path: Path, params: np.ndarray) -> list[StepCurve]:
                           [c.Multiplicity(i) for i in range(1, c.NbKnots() + 1)])
         pts = [adaptor.Value(float(u)) for u in params]
         curves.append(StepCurve(poles, knots, c.Degree(), bool(c.IsRational()), adaptor.FirstParameter(),
-                                adaptor.LastParameter(), np.array([[p.X(), p.Y(), p.Z()] for p in pts])))
+                                adaptor.LastParameter(), np.array([[p.X(), p.Y(), p.Z()] for p in pts]),
+                                bool(c.IsPeriodic())))
     return curves
 
 
@@ -105,7 +107,8 @@ def check_step_curve(step: Path, host: str, spline: CurveSpline, path: Path | No
         return checks
     c = curves[0]
     return checks + curve_checks(path, host, spline, params, degree=c.degree, rational=c.rational, poles=c.poles,
-                                 knots=c.knots, samples=c.samples, param_range=(c.first, c.last))
+                                 knots=c.knots, samples=c.samples, param_range=(c.first, c.last),
+                                 periodic=c.periodic)
 
 
 def read_step_shape(path: Path) -> Any:
@@ -217,4 +220,4 @@ def check_step_in_freecad(path: Path, spline: CurveSpline) -> list[Check]:
     c = curves[0]
     return checks + curve_checks(path, "freecad", spline, params, degree=c["degree"], rational=c["rational"],
                                  poles=c["poles"], knots=np.repeat(c["knots"], c["mults"]), samples=c["samples"],
-                                 param_range=c["range"])
+                                 param_range=c["range"], periodic=bool(c.get("periodic", False)))

@@ -102,7 +102,7 @@ def _title(result: Result, title: str | None, default: str) -> str:
 def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLike[str],
                truth: np.ndarray | None = None, *, title: str | None = None) -> Path:
     """Write the interactive curve report to ``path`` atomically and return it."""
-    from .plots import _points, deviation_along_curve, target_feet
+    from .plots import _points, curve_form, deviation_along_curve, target_feet
 
     go = _plotly()
     if result.kind != "curve" or result.control_points is None:
@@ -111,7 +111,8 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
     ctrl = _points(result.control_points, "result control points")
     truth_pts = None if truth is None else _points(truth, "ground-truth control points")
     diag, unit = diagonal(result), unit_label(units(result))
-    curve, dev, per_target = deviation_along_curve(ctrl, target, result.degree)
+    closed, corners = curve_form(result)
+    curve, dev, per_target = deviation_along_curve(ctrl, target, result.degree, closed=closed, corners=corners)
     worst = int(np.argmax(per_target))
 
     shape = go.Figure()
@@ -133,7 +134,8 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
                         legend={"orientation": "h"})
 
     along = np.linspace(0.0, 100.0, len(dev))
-    params = 100.0 * target_feet(ctrl, target, result.degree, curve)[0] if len(ctrl) > result.degree else along
+    params = (100.0 * target_feet(ctrl, target, result.degree, curve, closed, corners)[0]
+              if len(ctrl) > result.degree else along)
     deviation = go.Figure()
     deviation.add_trace(go.Scatter(x=along, y=dev, mode="lines", name="deviation", customdata=100 * dev / diag,
                                    hovertemplate=_pct_hover(unit), line={"color": "#1f77b4"}))

@@ -24,7 +24,7 @@ from .reconstruct.result import Result
 from .reconstruct.summary import STOP_REASONS, distance_lines, headline, run_length, tolerance_status, units
 from .reconstruct.units import unit_label
 
-__all__ = ["ADD_COLOUR", "CURVE_SAMPLES", "MOVE_COLOUR", "curve_figure", "curve_report", "deviation_along_curve",
+__all__ = ["ADD_COLOUR", "CURVE_SAMPLES", "MOVE_COLOUR", "curve_figure", "curve_report", "curve_form", "deviation_along_curve", "sample_curve",
            "run_length", "surface_figure", "surface_report", "target_feet"]
 
 if TYPE_CHECKING:
@@ -51,8 +51,23 @@ def _points(a: Any, what: str) -> np.ndarray:
     return pts
 
 
-def deviation_along_curve(ctrl: np.ndarray, target: np.ndarray, degree: int, n: int = CURVE_SAMPLES
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def curve_form(result: Result) -> tuple[bool, tuple[int, ...]]:
+    """A curve result's form: whether it is closed (periodic) and its corner control points."""
+    cfg = result.config or {}
+    return bool(cfg.get("closed", False)), tuple(int(i) for i in cfg.get("corners", ()) or ())
+
+
+def sample_curve(ctrl: np.ndarray, n: int, degree: int, closed: bool = False, corners=()) -> np.ndarray:
+    """``n`` curve points at evenly spaced parameters of the curve form (a closed curve ends where it starts)."""
+    from .geometry.bspline import make_spline, sample_uniform
+
+    if not closed and not corners:
+        return sample_uniform(ctrl, n, degree)
+    return make_spline(ctrl, degree, closed, corners)(np.linspace(0.0, 1.0, n))
+
+
+def deviation_along_curve(ctrl: np.ndarray, target: np.ndarray, degree: int, n: int = CURVE_SAMPLES,
+                          closed: bool = False, corners=()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``n`` evenly spaced curve points, the target's deviation there, and each target point's distance.
 
     Each target point is projected onto the curve (foot point); its distance is carried to the curve at
@@ -60,28 +75,28 @@ def deviation_along_curve(ctrl: np.ndarray, target: np.ndarray, degree: int, n: 
     colour bar's top equals the max distance, and an exact fit shows as zero even for sparse data (the
     chords between sparse points would show their sag as error).
     """
-    from .geometry.bspline import sample_uniform
     from .geometry.distance import point_to_polyline
 
     if len(ctrl) <= degree:  # too few points for a curve: the polygon stands in for it
         return ctrl, point_to_polyline(ctrl, target), point_to_polyline(target, ctrl)
-    curve = sample_uniform(ctrl, n, degree)
-    params, dist = target_feet(ctrl, target, degree, curve)
+    curve = sample_curve(ctrl, n, degree, closed, corners)
+    params, dist = target_feet(ctrl, target, degree, curve, closed, corners)
     order = np.argsort(params, kind="stable")
     return curve, np.interp(np.linspace(0.0, 1.0, n), params[order], dist[order]), dist
 
 
-def target_feet(ctrl: np.ndarray, target: np.ndarray, degree: int, curve: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def target_feet(ctrl: np.ndarray, target: np.ndarray, degree: int, curve: np.ndarray | None = None,
+                closed: bool = False, corners=()) -> tuple[np.ndarray, np.ndarray]:
     """Each target point's foot parameter on the curve (in [0, 1]) and its distance to the curve."""
     from scipy.spatial import cKDTree
 
-    from .geometry.bspline import sample_uniform
-    from .geometry.distance import foot_points
+    from .geometry.bspline import make_spline
+    from .geometry.distance import spline_foot_points
 
-    curve = sample_uniform(ctrl, CURVE_SAMPLES, degree) if curve is None else curve
+    curve = sample_curve(ctrl, CURVE_SAMPLES, degree, closed, corners) if curve is None else curve
     _, nearest = cKDTree(curve).query(target)
-    return foot_points(ctrl, target, nearest / (len(curve) - 1), degree)
+    spline = make_spline(ctrl, degree, closed, corners)
+    return spline_foot_points(spline, np.asarray(target, dtype=float), nearest / (len(curve) - 1), periodic=closed)
 
 
 def _fmt(x: float) -> str:
@@ -240,12 +255,13 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     ctrl = _points(result.control_points, "result control points")
     truth_pts = None if truth is None else _points(truth, "ground-truth control points")
     degree = result.degree
+    closed, corners = curve_form(result)
     diag = float(np.linalg.norm(np.ptp(target, axis=0))) or 1.0
     info = result.config.get("target") if isinstance(result.config.get("target"), dict) else {}
     if "diagonal" not in info:  # a hand-made result: its lengths are the target's
         result = dataclasses.replace(result, config={**result.config, "target": {**info, "diagonal": diag}})
     unit = unit_label(units(result))
-    curve, dist, per_target = deviation_along_curve(ctrl, target, degree)  # model units
+    curve, dist, per_target = deviation_along_curve(ctrl, target, degree, closed=closed, corners=corners)
     worst = int(np.argmax(per_target))
     target_info = result.config.get("target")
     name = _plain(title or (target_info.get("name") if isinstance(target_info, dict) else None) or "curve")
@@ -344,7 +360,7 @@ def _draw_deviation(ax, result: Result, ctrl: np.ndarray, target: np.ndarray, cu
     along = np.linspace(0.0, 100.0, len(dist))
     ax.plot(along, dist, color="#1f77b4", linewidth=1.2, label="deviation (between target points)")
     if len(ctrl) > result.degree:
-        params = 100.0 * target_feet(ctrl, target, result.degree, curve)[0]
+        params = 100.0 * target_feet(ctrl, target, result.degree, curve, *curve_form(result))[0]
         ax.scatter(params, per_target, s=6, color="black", zorder=3, label="target points")
     else:
         params = np.linspace(0.0, 100.0, len(per_target))
@@ -371,7 +387,6 @@ def _draw_deviation(ax, result: Result, ctrl: np.ndarray, target: np.ndarray, cu
 def _draw_curve_strip(fig, ax, states: list, genome: tuple, steps: list[int], target: np.ndarray,
                       degree: int) -> None:
     """The control polygon and its curve after a few prefixes of the genome, left to right (Figure 3 top)."""
-    from .geometry.bspline import sample_uniform
 
     box = ax.get_position()
     ax.set_axis_off()
@@ -386,7 +401,8 @@ def _draw_curve_strip(fig, ax, states: list, genome: tuple, steps: list[int], ta
         sub.plot(*target.T, ".", color="0.8", markersize=1.5)
         sub.plot(*states[k].points.T, "o-", color=MOVE_COLOUR, markersize=2, linewidth=0.8)
         if len(states[k].points) > degree:
-            sub.plot(*sample_uniform(states[k].points, 200, degree).T, color="black", linewidth=1.0)
+            sub.plot(*sample_curve(states[k].points, 200, degree, states[k].closed, states[k].corners).T,
+                     color="black", linewidth=1.0)
         sub.update_datalim(np.array([lo, hi]))
         sub.autoscale_view()
         sub.set_aspect("equal", adjustable="datalim")

@@ -21,7 +21,7 @@ def dump_curve(edge, params):
         return {"type": c.TypeId}
     return {"degree": c.Degree, "rational": bool(c.isRational()),
             "poles": [[p.x, p.y, p.z] for p in c.getPoles()], "knots": c.getKnots(),
-            "mults": c.getMultiplicities(), "range": list(edge.ParameterRange),
+            "mults": c.getMultiplicities(), "range": list(edge.ParameterRange), "periodic": bool(c.isPeriodic()),
             "samples": [[p.x, p.y, p.z] for p in (c.value(u) for u in params)]}
 
 

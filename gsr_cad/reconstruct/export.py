@@ -28,13 +28,14 @@ import json
 import os
 import shutil
 import tempfile
+import warnings
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
 from ..atomic import commit_files, write_text
-from ..errors import ExportError, GsrError, InputError
+from ..errors import ExportError, GsrError, GsrWarning, InputError
 from .result import Result
 
 GROUP = "gsr_cad.exporters"
@@ -143,6 +144,13 @@ def export(result: Any, out_dir: str | os.PathLike[str], formats: Sequence[str] 
     exports that were not replaced removed. Returns their paths.
     """
     names = default_formats(result.kind) if formats is None else check_formats(formats, result.kind)
+    refused = {n: why for n in names if (why := _refuses(registry()[n].exporter, result))}
+    if refused and formats is not None:
+        name, why = next(iter(refused.items()))
+        raise ExportError(f"format {name!r} cannot carry this result: {why}")
+    for name, why in refused.items():
+        warnings.warn(f"format {name} skipped: {why}", GsrWarning, stacklevel=2)
+    names = [n for n in names if n not in refused]
     stem = stem or result.kind
     out = Path(out_dir)
     try:
@@ -171,6 +179,12 @@ def export(result: Any, out_dir: str | os.PathLike[str], formats: Sequence[str] 
         raise ExportError(f"cannot write to {out}: {exc.strerror or exc}") from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _refuses(exporter: Any, result: Any) -> str | None:
+    """Why ``exporter`` cannot carry ``result`` exactly (None: it can; exporters without ``refuses`` can)."""
+    refuses = getattr(exporter, "refuses", None)
+    return refuses(result) if callable(refuses) else None
 
 
 def save_document(result: Any, path: str | os.PathLike[str]) -> Path:
