@@ -162,6 +162,14 @@ def save_host_document(script_name: str, text: str, path: Path, run: Callable[[P
     return Path(path)
 
 
+def _planar_only(result: Any) -> str | None:
+    """Why a curve exporter cannot write ``result``: every curve format here is planar for now."""
+    pts = getattr(result, "control_points", None)
+    if result.kind == "curve" and pts is not None and np.asarray(pts).ndim == 2 and np.asarray(pts).shape[1] != 2:
+        return "it writes planar (x, y) curves only; this curve is 3D"
+    return None
+
+
 class Exporter:
     """Base of all exporters; subclasses set the class attributes and write ``export_<kind>``/``validate_<kind>``.
 
@@ -187,7 +195,7 @@ class Exporter:
     def refuses(self, result: Any) -> str | None:
         """None when this exporter carries ``result`` exactly, else why not (a form its host script cannot
         replay yet): a default export then skips this format with a warning, an explicit one fails."""
-        return None
+        return _planar_only(result)
 
     def claims(self, path: Path) -> bool:
         """True when ``path`` is a file this exporter writes (by suffix)."""

@@ -147,7 +147,7 @@ class BlenderExporter(Exporter):
         if cfg.get("closed") or cfg.get("corners"):
             return ("its host script replays open curves without corners only (closed and cornered curves: "
                     "step, dxf, svg, scad, cadquery)")
-        return None
+        return super().refuses(result)
 
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         model = surface_model(result)

@@ -95,7 +95,7 @@ class FreecadMacroExporter(Exporter):
         if cfg.get("closed") or cfg.get("corners"):
             return ("its host script replays open curves without corners only (closed and cornered curves: "
                     "step, dxf, svg, scad, cadquery)")
-        return None
+        return super().refuses(result)
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         model = curve_model(result)

@@ -49,3 +49,14 @@ def test_closed_cornered_exports_pass_their_round_trips(square_result, tmp_path)
     failed = [(c.file, c.check, c.detail) for c in checks if c.status == "FAIL"]
     assert checks and not failed, failed
     assert {c.file for c in checks if c.status == "pass"} >= {"curve.step", "curve.dxf", "curve.svg"}
+
+
+def test_a_3d_curve_is_refused_by_the_planar_formats_not_written_flat(tmp_path):
+    t = np.linspace(0.0, 4.0 * np.pi, 300)
+    result = reconstruct_curve(curve_target(np.c_[np.cos(t), np.sin(t), 0.2 * t]), seed=1)
+    assert np.asarray(result.control_points).shape[1] == 3
+    with pytest.raises(ExportError, match="3D"):
+        gsr_cad.export(result, tmp_path, ["step"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GsrWarning)
+        assert gsr_cad.export(result, tmp_path) == []
