@@ -155,3 +155,15 @@ def test_closed_chaikin_converges_to_the_periodic_quadratic_bspline():
     spline = bspline.make_spline(c, 2, closed=True)
     assert point_to_spline(spline, fine, periodic=True).max() < 1e-4 * np.ptp(c)
     np.testing.assert_allclose(refine_closed(c, 1)[:2], [0.75 * c[0] + 0.25 * c[1], 0.25 * c[0] + 0.75 * c[1]])
+
+
+@pytest.mark.parametrize("closed,corners", [(False, ()), (True, ()), (True, (0, 4)), (False, (3, 6))])
+def test_bezier_pieces_of_any_clamped_form_are_exact(closed, corners):
+    c = ctrl(10, seed=11)
+    knots, poles = bspline.clamped_form(c, 3, closed, corners)
+    pieces, brk, spline = bspline.bezier_pieces(knots, poles, 3), np.unique(knots), BSpline(knots, poles, 3)
+    assert len(pieces) == len(brk) - 1
+    u = np.linspace(0, 1, 11)
+    basis = np.stack([(1 - u) ** 3, 3 * u * (1 - u) ** 2, 3 * u ** 2 * (1 - u), u ** 3], axis=1)
+    for j, piece in enumerate(pieces):
+        np.testing.assert_allclose(basis @ piece, spline(brk[j] + u * (brk[j + 1] - brk[j])), atol=1e-12)

@@ -293,3 +293,16 @@ def clamped_form(control_points: np.ndarray, degree: int = 3, closed: bool = Fal
     knots = np.concatenate([np.zeros(k + 1), inner, np.ones(k + 1)])
     poles = coef[first - 1:first - 1 + len(knots) - k - 1]
     return knots, poles
+
+
+def bezier_pieces(knots: np.ndarray, poles: np.ndarray, degree: int = 3) -> np.ndarray:
+    """The exact Bezier pieces ``(n_pieces, degree + 1, dim)`` of a clamped B-spline with any knot vector (one
+    piece per non-empty knot span, in order), by inserting every interior knot up to multiplicity ``degree``."""
+    k = _check_degree(degree)
+    t, coef = np.asarray(knots, dtype=np.float64).copy(), np.asarray(poles, dtype=np.float64).copy()
+    for u in np.unique(t[k + 1:len(t) - k - 1]):
+        while np.count_nonzero(t == u) < k:
+            t, coef = _insert_knot(t, coef, float(u), k)
+    n_pieces = (len(coef) - 1) // k
+    rows = (np.arange(n_pieces)[:, None] * k + np.arange(k + 1)[None, :]).ravel()
+    return coef[rows].reshape(n_pieces, k + 1, coef.shape[1])

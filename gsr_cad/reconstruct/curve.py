@@ -346,9 +346,13 @@ class CurveProblem:
         (up to four rounds)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
-        if counts is None:
+        if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
             self.model.upto = None
-            corners, counts = (), self.model.allocation((), max(n, self.model.minimum_total(()) or n))
+            low = self.model.minimum_total(corners)
+            counts = self.model.allocation(corners, low) if low is not None else None
+            if counts is None:
+                corners = ()
+                counts = self.model.allocation((), self.model.minimum_total(()))
         ctrl, idx = self.model.assemble(corners, counts, refine=True)
         full = self.prepared.points
         if self.config.max_distance is None:
