@@ -184,6 +184,8 @@ class Exporter:
     kinds: ClassVar[tuple[str, ...]] = ()
     suffixes: ClassVar[tuple[str, ...]] = ()
     host: ClassVar[str] = ""
+    curve_forms: ClassVar[bool] = True
+    """Whether closed and cornered curves are carried exactly (False: a history script replaying open curves)."""
 
     def available(self) -> str | None:
         """None when this exporter can write files here, else why not (e.g. "build123d not installed")."""
@@ -195,6 +197,10 @@ class Exporter:
     def refuses(self, result: Any) -> str | None:
         """None when this exporter carries ``result`` exactly, else why not (a form its host script cannot
         replay yet): a default export then skips this format with a warning, an explicit one fails."""
+        cfg = (result.config or {}) if result.kind == "curve" else {}
+        if not self.curve_forms and (cfg.get("closed") or cfg.get("corners")):
+            return ("its host script replays open curves without corners only (closed and cornered curves: "
+                    "step, dxf, svg, scad, cadquery)")
         return _planar_only(result)
 
     def claims(self, path: Path) -> bool:

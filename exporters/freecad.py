@@ -88,14 +88,7 @@ class FreecadMacroExporter(Exporter):
     kinds = ("curve", "surface")
     suffixes = (".FCMacro",)
     host = "freecad"
-
-
-    def refuses(self, result: Any) -> str | None:
-        cfg = (result.config or {}) if result.kind == "curve" else {}
-        if cfg.get("closed") or cfg.get("corners"):
-            return ("its host script replays open curves without corners only (closed and cornered curves: "
-                    "step, dxf, svg, scad, cadquery)")
-        return super().refuses(result)
+    curve_forms = False
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         model = curve_model(result)

@@ -113,17 +113,24 @@ class Curve:
         obj.Shape = spline.toShape()
 
 
-def build_curve(doc):
+def history_chain(doc, make):
+    """One FeaturePython object per step of DATA["steps"] in a "History" group, each linked to the one
+    before as its Base; make(obj, number, step) gives each its properties. Returns the steps in order."""
     history = doc.addObject("App::DocumentObjectGroup", "History")
     steps = []
     for number, step in enumerate(DATA["steps"]):
         obj = doc.addObject("Part::FeaturePython", "Step%03d" % number)
         obj.Label = step["label"]
-        Step(obj, step["op"], step["points"])
+        make(obj, number, step)
         if steps:
             obj.Base = steps[-1]
         history.addObject(obj)
         steps.append(obj)
+    return steps
+
+
+def build_curve(doc):
+    steps = history_chain(doc, lambda obj, number, step: Step(obj, step["op"], step["points"]))
     curve = doc.addObject("Part::FeaturePython", "Curve")
     curve.Label = "curve (%s, degree %d)" % (DATA["scheme"], DATA["degree"])
     Curve(curve, steps[-1])
@@ -326,16 +333,7 @@ def limit_surface():
 
 
 def build_surface(doc):
-    history = doc.addObject("App::DocumentObjectGroup", "History")
-    steps = []
-    for number, step in enumerate(DATA["steps"]):
-        obj = doc.addObject("Part::FeaturePython", "Step%03d" % number)
-        obj.Label = step["label"]
-        MeshStep(obj, number)
-        if steps:
-            obj.Base = steps[-1]
-        history.addObject(obj)
-        steps.append(obj)
+    steps = history_chain(doc, lambda obj, number, step: MeshStep(obj, number))
     surface = doc.addObject("Part::Feature", "LimitSurface")
     surface.Label = "limit surface (%d B-spline patches, as exported)" % len(DATA["patches"])
     surface.Shape = limit_surface()
