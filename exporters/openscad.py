@@ -120,6 +120,7 @@ class OpenscadExporter(Exporter):
     kinds = ("curve", "surface")
     suffixes = (".scad",)
     host = "openscad"
+    curve_dims = (2,)
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         spline = curve_model(result).spline

@@ -78,6 +78,7 @@ class SvgExporter(Exporter):
     kinds = ("curve",)
     suffixes = (".svg",)
     host = "svgelements"
+    curve_dims = (2,)
 
     def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         spline = curve_model(result).spline

@@ -392,7 +392,7 @@ def test_an_op_kind_added_later_parses_and_the_scripts_refuse_it_clearly(monkeyp
     with pytest.raises(InputError, match="amount must be a finite number"):
         Result.from_json(_set(doc, "genome", [{"op": "test_nudge", "index": 1, "amount": "x"}]))
     for exporter in (BlenderExporter(), FreecadMacroExporter()):
-        with pytest.raises(ExportError, match="replays add_point, move_point, not test_nudge"):
+        with pytest.raises(ExportError, match="replays add_point, move_point, corner, not test_nudge"):
             exporter.render(result, "curve")
     (scad,) = OpenscadExporter().render(result, "curve").values()  # formats of the geometry need no op kinds
     assert "gsr_control_points" in scad
