@@ -45,15 +45,17 @@ def _ring3d() -> np.ndarray:
 
 
 CASES = {"square": (_square, True, True, 2), "vee3d": (_vee3d, False, True, 3), "helix": (_helix, False, False, 3),
-         "ring3d": (_ring3d, True, False, 3)}
-"""name: (data, closed, cornered, dimension) as the reconstruction must find them."""
+         "ring3d": (_ring3d, True, False, 3), "square-chaikin": (_square, True, True, 2)}
+"""name: (data, closed, cornered, dimension) as the reconstruction must find them (a "-chaikin" case is
+reconstructed with the Chaikin scheme: quadratic B-splines)."""
 
 
 @pytest.fixture(scope="module")
 def results():
     out = {}
     for name, (data, closed, cornered, dim) in CASES.items():
-        result = reconstruct_curve(curve_target(data()), seed=1)
+        result = reconstruct_curve(curve_target(data()), seed=1,
+                                   scheme="chaikin" if name.endswith("-chaikin") else "bspline")
         assert (bool(result.config["closed"]), bool(result.config["corners"])) == (closed, cornered), name
         assert np.asarray(result.control_points).shape[1] == dim, name
         out[name] = result
