@@ -111,6 +111,8 @@ def test_the_hosts_see_the_form_closed_periodic_cornered_and_in_space(validated,
         assert ("curve.FCMacro", "closed") in passed
     if hosts.find_host("blender"):
         assert ("curve_blender.py", "Bezier spline, free handles, cyclic if closed") in passed
+    if dim == 2:
+        assert ("curve.svg", "closed path (Z at the end)" if closed else "open path") in passed
     spline = curve_spline(results[name])
     assert spline.dim == dim and spline.closed == closed
     if cornered:  # corners are knots of multiplicity degree in the exported form

@@ -212,9 +212,10 @@ def test_scad_comments_and_values_cannot_escape():
     assert scad_comment("a\nb\r\nc */ d") == "// a_b__c _/ d"
     for bad in (float("nan"), "1; cube(1)", [1, "x"], None):
         with pytest.raises(ExportError):
-            fill_scad("curve.scad", {"width": bad, "gsr_curve_points": [], "gsr_control_points": [], "gsr_unit": 1})
+            fill_scad("curve.scad", {"width": bad, "gsr_curve_points": [], "gsr_control_points": [], "gsr_unit": 1,
+                                     "gsr_closed": False})
     text = fill_scad("curve.scad", {"width": 1.0, "gsr_curve_points": [[0.0, 0.0]], "gsr_control_points": [[1, 2]],
-                                    "gsr_unit": 1}, {"title": ["x\ncube(5);"]})
+                                    "gsr_unit": 1, "gsr_closed": True}, {"title": ["x\ncube(5);"]})
     assert "\ncube(5);" not in text and "// x_cube(5);" in text
 
 
