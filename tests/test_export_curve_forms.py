@@ -204,3 +204,37 @@ def test_a_dxf_spline_that_lost_its_closed_flag_or_its_z_fails(results, tmp_path
     doc.saveas(path)
     got = {c.check: c.status for c in exporter.validate(path, results["ring3d"])}
     assert got["closed"] == "FAIL" and got["poles"] == "FAIL"
+
+
+def _host_helper() -> dict:
+    """The pure-Python helper the FreeCAD macro and the Blender script inline (hostside/curve_knots.py)."""
+    import runpy
+    from importlib import resources
+
+    return runpy.run_path(str(resources.files("gsr_cad.exporters.hostside").joinpath("curve_knots.py")))
+
+
+@pytest.mark.parametrize("degree", [2, 3])
+def test_the_host_scripts_knots_and_bezier_pieces_are_gsr_cads(degree):
+    """The knots the host scripts compute for themselves, and the Blender script's Bezier pieces, are exactly
+    those of gsr_cad.geometry.bspline, for open and closed curves with corners anywhere (seam included)."""
+    from gsr_cad.exporters.encode import fill_python, host_file
+
+    helper = _host_helper()
+    for script in ("freecad_macro.py", "blender_curve.py"):  # both inline the helper
+        assert "  # gsr:inline" in host_file(script) and "def form_knots(" in fill_python(script, {})
+    rng = np.random.default_rng(11)
+    k = degree
+    for n, closed, corners in [(4, False, ()), (9, False, ()), (9, False, (k,)), (12, False, (k, 2 * k + 1)),
+                               (9, True, ()), (9, True, (0,)), (9, True, (1,)), (9, True, (8,)), (10, True, (2, 7)),
+                               (3 * k + 1, True, (0, k, 2 * k))]:
+        assert helper["form_knots"](n, k, closed, corners) == bspline.form_knots(n, k, closed, corners).tolist()
+        ctrl = rng.normal(size=(n, 3))
+        knots, clamped = bspline.clamped_form(ctrl, k, closed, corners)
+        got = np.array(helper["bezier_pieces"](ctrl.tolist(), k, closed, corners))
+        np.testing.assert_allclose(got, bspline.bezier_pieces(knots, clamped, k), rtol=0, atol=1e-12)
+        if closed:
+            poles, values, mults = helper["periodic_form"](ctrl.tolist(), k, corners)
+            ours = curve_spline_of(ctrl, k, corners, knots, clamped).periodic_forms()[0]
+            np.testing.assert_array_equal(poles, ours[0])
+            assert values == ours[1].tolist() and mults == ours[2].tolist()

@@ -18,6 +18,7 @@ import json
 import sys
 
 import bpy
+from curve_knots import bezier_pieces  # gsr:inline
 
 DATA = {}
 
@@ -45,42 +46,6 @@ def _xyz(p):
     return (float(p[0]), float(p[1]), float(p[2]) if len(p) > 2 else 0.0)
 
 
-def knot_vector(n, k, closed, corners):
-    """Knots of n points of degree k, each corner merging k knots into one, distinct knots evenly spaced:
-    clamped on [0, 1], or (closed) periodic with period 1, t[k] = 0, one spare period end (n + 3k + 1 knots)."""
-    merged = set(j for i in corners for j in range(i + 2, i + k + 1))
-    if not closed:
-        inner, g = [], 0
-        for j in range(k + 1, n):
-            g += j not in merged
-            inner.append(g)
-        return [0.0] * (k + 1) + [x / (g + 1) for x in inner] + [1.0] * (k + 1)
-    merged = set(m % n for m in merged)
-    starts, g = [], 0
-    for j in range(k, k + n):
-        g += (j % n) not in merged
-        starts.append(g)
-    return [(starts[(j - k) % n] - starts[0]) / starts[-1] + (j - k) // n for j in range(n + 3 * k + 1)]
-
-
-def bezier_pieces(points, k, closed, corners):
-    """The exact Bezier pieces (k + 1 points each) of the curve on [0, 1]: Boehm knot insertion until every
-    knot in [0, 1] has multiplicity k, then the k + 1 coefficients of every non-empty span."""
-    n = len(points)
-    t = knot_vector(n, k, closed, corners)
-    c = [_xyz(points[j % n]) for j in range(len(t) - k - 1)]
-    for u in sorted(set(x for x in t if 0.0 <= x <= 1.0)):
-        while sum(1 for x in t if x == u) < k:
-            s = max(i for i in range(len(t) - 1) if t[i] <= u and t[i] < t[i + 1])
-            new = []
-            for i in range(s - k + 1, s + 1):
-                a = (u - t[i]) / (t[i + k] - t[i])
-                new.append(tuple((1.0 - a) * p + a * q for p, q in zip(c[i - 1], c[i])))
-            c[s - k + 1:s] = new
-            t.insert(s + 1, u)
-    return [c[s - k:s + 1] for s in range(k, len(t) - k - 1) if 0.0 <= t[s] < t[s + 1] <= 1.0]
-
-
 def cubic(piece):
     """A quadratic Bezier piece raised exactly to a cubic one (cubic pieces are kept)."""
     if len(piece) == 4:
@@ -106,7 +71,7 @@ def polygon_object(name, points, collection):
 
 def curve_object(name, points, corners, collection):
     """The exact curve as a Bezier spline (free handles), one segment per knot span, cyclic when closed."""
-    pieces = [cubic(p) for p in bezier_pieces(points, DATA["degree"], DATA["closed"], corners)]
+    pieces = [cubic(p) for p in bezier_pieces([_xyz(p) for p in points], DATA["degree"], DATA["closed"], corners)]
     data = bpy.data.curves.new(name, "CURVE")
     data.dimensions = "3D"
     spline = data.splines.new("BEZIER")

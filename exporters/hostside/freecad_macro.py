@@ -31,6 +31,7 @@ import sys
 
 import FreeCAD as App
 import Part
+from curve_knots import distinct, form_knots, periodic_form  # gsr:inline
 
 DATA = {}
 
@@ -78,51 +79,13 @@ def corner(points, corners, index, _=None):
 OPS = {"add_point": (add_point, "Position"), "move_point": (move_point, "Delta"), "corner": (corner, None)}
 
 
-def form_knots(n, k, closed, corners):
-    """The knot vector of n poles of degree k with these corners (each merges k knots into one): clamped on
-    [0, 1] (n + k + 1 knots), or periodic with period 1 and t[k] = 0 (n + 2k + 1 knots). Distinct knots are
-    evenly spaced."""
-    merged = set(j for i in corners for j in range(i + 2, i + k + 1))
-    if not closed:
-        groups, g = [], 0
-        for j in range(k + 1, n):
-            g += j not in merged
-            groups.append(g)
-        return [0.0] * (k + 1) + [x / (g + 1) for x in groups] + [1.0] * (k + 1)
-    merged = set(m % n for m in merged)
-    starts, g = [], 0
-    for j in range(k, k + n):
-        g += (j % n) not in merged
-        starts.append(g)
-    period = [(x - starts[0]) / starts[-1] for x in starts]
-    return [period[(j - k) % n] + (j - k) // n for j in range(n + 2 * k + 1)]
-
-
-def distinct(knots):
-    """Distinct values of a knot vector and their multiplicities."""
-    values, mults = [], []
-    for u in knots:
-        if values and u == values[-1]:
-            mults[-1] += 1
-        else:
-            values.append(u)
-            mults.append(1)
-    return values, mults
-
-
 def curve_form(poles, k, closed, corners):
-    """(poles, knots, multiplicities, periodic) of the curve as FreeCAD builds it: clamped when open; when
-    closed, periodic on one period [0, 1] with equal end multiplicities (the number of knots at 0), the poles
-    turned by the copies of that knot after t[k]."""
-    t = form_knots(len(poles), k, closed, corners)
-    if not closed:
-        knots, mults = distinct(t)
-        return poles, knots, mults, False
-    knots, mults = distinct(t[k:k + len(poles) + 1])
-    zeros = [j for j, u in enumerate(t) if u == 0.0]
-    mults[0] = mults[-1] = len(zeros)
-    shift = zeros[-1] - k
-    return poles[shift:] + poles[:shift], knots, mults, True
+    """(poles, knots, multiplicities, periodic) of the curve as FreeCAD builds it: clamped when open, periodic on
+    one period [0, 1] when closed."""
+    if closed:
+        return periodic_form(poles, k, corners) + (True,)
+    knots, mults = distinct(form_knots(len(poles), k, False, corners))
+    return poles, knots, mults, False
 
 
 class Step:
