@@ -207,8 +207,9 @@ class Exporter:
         return kind in self.kinds
 
     def refuses(self, result: Any) -> str | None:
-        """None when this exporter carries ``result`` exactly, else why not (a form its host script cannot
-        replay yet): a default export then skips this format with a warning, an explicit one fails."""
+        """None when this exporter carries ``result`` exactly, else why not (a 3D curve for a format that is
+        planar by nature, see ``curve_dims``): a default export then skips this format with a warning, an
+        explicit one fails."""
         dim = _curve_dim(result)
         if dim is not None and dim not in self.curve_dims:
             return "it is planar by nature: it writes (x, y) curves only, and this curve is 3D"

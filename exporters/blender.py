@@ -32,7 +32,7 @@ from gsr_cad.ops.mesh import ALL_OPS_BY_LETTER
 from gsr_cad.ops.mesh_kernel import bbox_centre
 
 from . import hosts
-from .base import (EXACT_TOL, SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
+from .base import (SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
                    save_host_document, scratch_dir, skipped)
 from .encode import fill_python
 from .model import (CurveModel, CurveSpline, curve_model, read_obj, require_ops, same_mesh, surface_labels,

@@ -104,8 +104,8 @@ def test_the_hosts_see_the_form_closed_periodic_cornered_and_in_space(validated,
         assert (file, "closed") in passed
     # a closed curve is periodic in OCCT: the STEP reader's form and the macro's own periodic B-spline
     periodic = {c.file for c in checks if c.check == "periodic poles" and c.status == "pass"}
-    assert periodic == ({"curve.step", "curve_cadquery.py"} | ({"curve.FCMacro"} if hosts.find_host("freecad") else set())
-                        if closed else set())
+    macro = {"curve.FCMacro"} if hosts.find_host("freecad") else set()
+    assert periodic == ({"curve.step", "curve_cadquery.py"} | macro if closed else set())
     if hosts.find_host("freecad"):
         assert ("curve.FCMacro", "history corners") in passed
         assert ("curve.FCMacro", "closed") in passed
