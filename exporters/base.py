@@ -34,7 +34,7 @@ import numpy as np
 from gsr_cad.atomic import atomic_path, write_text
 from gsr_cad.errors import ExportError
 
-from .model import CurveSpline
+from .model import CurveSpline, xyz
 
 EXACT_TOL = 1e-9
 SAMPLE_TOL = 1e-6
@@ -91,20 +91,36 @@ def point_deviation(got: np.ndarray, want: np.ndarray) -> float:
     return float(np.max(np.linalg.norm(a - b, axis=-1)))
 
 
-def _planar(points: Any, dim: int) -> np.ndarray:
-    a = np.asarray(points, dtype=float)
-    if a.ndim == 2 and a.shape[1] == 2 and dim == 3:
-        a = np.column_stack([a, np.zeros(len(a))])
-    return a
+def _as_dim(points: Any, dim: int) -> np.ndarray:
+    """Our points in the host's dimension: planar rows get z = 0 when the host gives (x, y, z)."""
+    return xyz(points) if dim == 3 else np.asarray(points, dtype=float)
+
+
+def _periodic_checks(path: Path | str, host: str, spline: CurveSpline, poles: np.ndarray,
+                     knots: np.ndarray) -> list[Check]:
+    """A closed curve the host holds as periodic: its poles and flattened knots must be one of our exact
+    periodic forms (:meth:`CurveSpline.periodic_forms`; the one with the host's pole count)."""
+    forms = [(_as_dim(p, poles.shape[1] if poles.ndim == 2 else 2), np.repeat(v, m))
+             for p, v, m in spline.periodic_forms()]
+    fits = [f for f in forms if f[0].shape == poles.shape] or forms[:1]
+    if not fits:
+        return [failed(path, host, "periodic", "the host holds a periodic curve; ours is open")]
+    dev = [(point_deviation(poles, p), point_deviation(knots, t)) for p, t in fits]
+    pole_dev, knot_dev = min(dev, key=lambda d: d[0] / spline.scale + d[1])
+    return [measured(path, host, "periodic poles", pole_dev, EXACT_TOL * spline.scale),
+            measured(path, host, "periodic knots", knot_dev, EXACT_TOL)]
 
 
 def curve_checks(path: Path | str, host: str, spline: CurveSpline, params: np.ndarray, *, degree: int,
                  rational: bool, poles: Any, knots: Any, samples: Any,
-                 param_range: Sequence[float] | None = None, periodic: bool = False) -> list[Check]:
+                 param_range: Sequence[float] | None = None, periodic: bool = False,
+                 closed: bool | None = None) -> list[Check]:
     """The checks every exact-B-spline format shares: degree, non-rational, poles and flattened knots
     (within :data:`EXACT_TOL`), the parameter range [0, 1], and the host's own evaluation at ``params``
-    (within :data:`SAMPLE_TOL`; skipped when ``samples`` is None). ``poles``/``samples`` may be 2-D or 3-D
-    (then z must be 0). A host that re-reads our closed curve as ``periodic`` is checked by its evaluation only."""
+    (within :data:`SAMPLE_TOL`; skipped when ``samples`` is None). ``poles``/``samples`` may be (x, y) or
+    (x, y, z) rows (a planar curve's z must then be 0). A host that holds our closed curve as ``periodic`` is
+    compared with our periodic forms; ``closed`` (the host's own closed flag, when it has one) must say
+    whether our curve is closed."""
     got_poles = np.asarray(poles, dtype=float)
     got_samples = np.asarray(samples if samples is not None else [], dtype=float)
     dim = got_poles.shape[1] if got_poles.ndim == 2 else 2
@@ -112,14 +128,12 @@ def curve_checks(path: Path | str, host: str, spline: CurveSpline, params: np.nd
         expect_equal(path, host, "degree", int(degree), spline.degree),
         expect_equal(path, host, "non-rational", bool(rational), False),
     ]
-    closed = bool(np.allclose(spline.poles[0], spline.poles[-1], rtol=0.0, atol=EXACT_TOL * spline.scale))
-    if periodic and closed and samples is not None:
-        # the host turned our closed (end-clamped) curve into its periodic form: other poles and knots, the
-        # same curve, so its own evaluation at our parameters is the check
-        checks.append(skipped(path, host, "poles and knots", "the host re-reads the closed curve as periodic; "
-                                                             "compared by its evaluated points"))
+    if closed is not None:
+        checks.append(expect_equal(path, host, "closed", bool(closed), spline.closed))
+    if periodic:
+        checks += _periodic_checks(path, host, spline, got_poles, np.asarray(knots, dtype=float))
     else:
-        checks += [measured(path, host, "poles", point_deviation(got_poles, _planar(spline.poles, dim)),
+        checks += [measured(path, host, "poles", point_deviation(got_poles, _as_dim(spline.poles, dim)),
                             EXACT_TOL * spline.scale),
                    measured(path, host, "knots", point_deviation(np.asarray(knots, dtype=float), spline.knots),
                             EXACT_TOL)]
@@ -131,7 +145,7 @@ def curve_checks(path: Path | str, host: str, spline: CurveSpline, params: np.nd
         return checks
     dim = got_samples.shape[1] if got_samples.ndim == 2 else 2
     checks.append(measured(path, host, f"{len(params)} curve samples",
-                           point_deviation(got_samples, _planar(spline.points(params), dim)),
+                           point_deviation(got_samples, _as_dim(spline.points(params), dim)),
                            SAMPLE_TOL * spline.scale))
     return checks
 
@@ -162,12 +176,10 @@ def save_host_document(script_name: str, text: str, path: Path, run: Callable[[P
     return Path(path)
 
 
-def _planar_only(result: Any) -> str | None:
-    """Why a curve exporter cannot write ``result``: every curve format here is planar for now."""
+def _curve_dim(result: Any) -> int | None:
     pts = getattr(result, "control_points", None)
-    if result.kind == "curve" and pts is not None and np.asarray(pts).ndim == 2 and np.asarray(pts).shape[1] != 2:
-        return "it writes planar (x, y) curves only; this curve is 3D"
-    return None
+    a = np.asarray(pts) if result.kind == "curve" and pts is not None else None
+    return int(a.shape[1]) if a is not None and a.ndim == 2 else None
 
 
 class Exporter:
@@ -184,8 +196,8 @@ class Exporter:
     kinds: ClassVar[tuple[str, ...]] = ()
     suffixes: ClassVar[tuple[str, ...]] = ()
     host: ClassVar[str] = ""
-    curve_forms: ClassVar[bool] = True
-    """Whether closed and cornered curves are carried exactly (False: a history script replaying open curves)."""
+    curve_dims: ClassVar[tuple[int, ...]] = (2, 3)
+    """The curve dimensions carried exactly: (x, y) and (x, y, z), or (2,) for a format planar by nature."""
 
     def available(self) -> str | None:
         """None when this exporter can write files here, else why not (e.g. "build123d not installed")."""
@@ -195,13 +207,13 @@ class Exporter:
         return kind in self.kinds
 
     def refuses(self, result: Any) -> str | None:
-        """None when this exporter carries ``result`` exactly, else why not (a form its host script cannot
-        replay yet): a default export then skips this format with a warning, an explicit one fails."""
-        cfg = (result.config or {}) if result.kind == "curve" else {}
-        if not self.curve_forms and (cfg.get("closed") or cfg.get("corners")):
-            return ("its host script replays open curves without corners only (closed and cornered curves: "
-                    "step, dxf, svg, scad, cadquery)")
-        return _planar_only(result)
+        """None when this exporter carries ``result`` exactly, else why not (a 3D curve for a format that is
+        planar by nature, see ``curve_dims``): a default export then skips this format with a warning, an
+        explicit one fails."""
+        dim = _curve_dim(result)
+        if dim is not None and dim not in self.curve_dims:
+            return "it is planar by nature: it writes (x, y) curves only, and this curve is 3D"
+        return None
 
     def claims(self, path: Path) -> bool:
         """True when ``path`` is a file this exporter writes (by suffix)."""

@@ -32,10 +32,11 @@ from gsr_cad.ops.mesh import ALL_OPS_BY_LETTER
 from gsr_cad.ops.mesh_kernel import bbox_centre
 
 from . import hosts
-from .base import (EXACT_TOL, SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
+from .base import (SAMPLE_TOL, Check, Exporter, expect_equal, failed, measured, point_deviation,
                    save_host_document, scratch_dir, skipped)
 from .encode import fill_python
-from .model import CurveModel, curve_model, read_obj, require_ops, same_mesh, surface_labels, surface_model
+from .model import (CurveModel, CurveSpline, curve_model, read_obj, require_ops, same_mesh, surface_labels,
+                    surface_model, xyz)
 
 MAX_LEVELS = 6
 _BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
@@ -112,16 +113,19 @@ def write_blender_script(genome: Sequence[Op], template: PolyMesh, path: str | o
     return write_text(path, mesh_script(genome, states, levels, use_limit_surface, title, boundary))
 
 
-CURVE_OPS = ("add_point", "move_point")
+CURVE_OPS = ("add_point", "move_point", "corner")
 """The curve ops the Blender curve script replays."""
 
 
 def curve_script(model: CurveModel, name: str) -> str:
-    """The curve script text (history replay + NURBS curve)."""
+    """The curve script text (history replay + the curve as its exact Bezier spline)."""
     history = model.history
     require_ops(model.genome, CURVE_OPS, "Blender curve script")
+    if history[0].corners:
+        raise ExportError("the Blender curve script replays templates without corners")
     return fill_python("blender_curve.py", {
-        "name": name or "gsr_curve", "degree": int(model.spline.degree), "resolution": CURVE_RESOLUTION,
+        "name": name or "gsr_curve", "degree": int(model.spline.degree), "closed": model.spline.closed,
+        "resolution": CURVE_RESOLUTION,
         "template": history[0].points.tolist(),
         "steps": [{"label": _blender_name(h.label), "op": h.op} for h in history],
     })
@@ -140,7 +144,6 @@ class BlenderExporter(Exporter):
     kinds = ("curve", "surface")
     suffixes = ("_blender.py",)
     host = "blender"
-    curve_forms = False
 
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         model = surface_model(result)
@@ -221,15 +224,20 @@ class BlenderExporter(Exporter):
         spline, history = model.spline, model.history
         host, diag = self.host, spline.diagonal
         tol = CONTROL_TOL * max(diag, spline.scale)
-        poles = np.asarray(data["poles"], dtype=float)
+        pieces = cubic_pieces(spline)
+        closed, m = spline.closed, len(pieces)
+        # Bezier points (handle_left, co, handle_right) as the pieces give them; open ends have handles on co
+        co = np.concatenate([pieces[:, 0], pieces[-1:, 3]]) if not closed else pieces[:, 0]
+        right = np.concatenate([pieces[:, 1], co[-1:]]) if not closed else pieces[:, 1]
+        left = np.concatenate([co[:1], pieces[:, 2]]) if not closed else np.roll(pieces[:, 2], 1, axis=0)
+        want = np.stack([left, co, right], axis=1)
+        got = np.asarray(data["bezier"], dtype=float)
         checks = [
-            expect_equal(path, host, "NURBS settings", (data["type"], data["order"], data["endpoint"], data["cyclic"]),
-                         ("NURBS", spline.degree + 1, True, False)),
-            measured(path, host, "poles", point_deviation(poles[:, :3] if poles.ndim == 2 else poles,
-                                                          np.column_stack([spline.poles, np.zeros(len(spline.poles))])),
-                     tol, f"tolerance {tol:.3g} (single precision)"),
-            measured(path, host, "weights", float(np.abs(poles[:, 3] - 1.0).max()) if poles.ndim == 2 else math.inf,
-                     EXACT_TOL),
+            expect_equal(path, host, "Bezier spline, free handles, cyclic if closed",
+                         (data["type"], data["handle_types"], data["cyclic"]), ("BEZIER", ["FREE"], closed)),
+            measured(path, host, f"{m} Bezier segments: points and handles",
+                     point_deviation(got.reshape(-1, 3), want.reshape(-1, 3)) if got.shape == want.shape else math.inf,
+                     tol, f"the exact Bezier pieces of the B-spline; tolerance {tol:.3g} (single precision)"),
         ]
         steps = data.get("history") or []
         checks += [
@@ -240,13 +248,33 @@ class BlenderExporter(Exporter):
                          [i == len(history) - 1 for i in range(len(history))]),
         ]
         if len(steps) == len(history):
-            dev = max(point_deviation(np.asarray(s["points"], dtype=float)[:, :2], h.points)
+            dev = max(point_deviation(np.asarray(s["points"], dtype=float)[:, :3], xyz(h.points))
                       for s, h in zip(steps, history))
             checks.append(measured(path, host, "history polygons", dev, tol, f"tolerance {tol:.3g}"))
         samples = np.asarray(data["samples"], dtype=float)
-        params = np.linspace(0.0, 1.0, len(samples))
-        want = np.column_stack([spline.points(params), np.zeros(len(params))])
+        res = int(data["resolution"])
+        t = np.arange(m * res + (0 if closed else 1)) / res  # Blender steps every segment uniformly in t
+        knots = spline.breakpoints
+        seg = np.minimum(t.astype(int), m - 1)
+        params = knots[seg] + (t - seg) * (knots[seg + 1] - knots[seg])
         stol = SAMPLE_TOL * max(diag, spline.scale)
-        checks.append(measured(path, host, f"{len(samples)} evaluated points", point_deviation(samples, want), stol,
-                               f"Blender's own NURBS evaluation; tolerance {stol:.3g}"))
+        checks.append(measured(path, host, f"{len(samples)} evaluated points",
+                               point_deviation(samples, xyz(spline.points(params))), stol,
+                               f"Blender's own Bezier evaluation; tolerance {stol:.3g}"))
         return checks
+
+
+def cubic_pieces(spline: CurveSpline) -> np.ndarray:
+    """The curve's exact Bezier pieces as cubics ``(n_spans, 4, 3)`` (quadratic pieces degree-raised)."""
+    b = xyz_pieces(spline.bezier())
+    if b.shape[1] == 4:
+        return b
+    p0, p1, p2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([p0, p0 + 2.0 * (p1 - p0) / 3.0, p2 + 2.0 * (p1 - p2) / 3.0, p2], axis=1)
+
+
+def xyz_pieces(pieces: np.ndarray) -> np.ndarray:
+    """Bezier pieces with (x, y, z) points (z = 0 for a planar curve)."""
+    if pieces.shape[2] == 3:
+        return pieces
+    return np.concatenate([pieces, np.zeros(pieces.shape[:2] + (1,))], axis=2)

@@ -65,6 +65,7 @@ class StepCurve:
     last: float
     samples: np.ndarray
     periodic: bool = False
+    closed: bool = False
 
 
 def read_step_curves(path: Path, params: np.ndarray) -> list[StepCurve]:
@@ -89,7 +90,7 @@ def read_step_curves(path: Path, params: np.ndarray) -> list[StepCurve]:
         pts = [adaptor.Value(float(u)) for u in params]
         curves.append(StepCurve(poles, knots, c.Degree(), bool(c.IsRational()), adaptor.FirstParameter(),
                                 adaptor.LastParameter(), np.array([[p.X(), p.Y(), p.Z()] for p in pts]),
-                                bool(c.IsPeriodic())))
+                                bool(c.IsPeriodic()), bool(c.IsClosed())))
     return curves
 
 
@@ -108,7 +109,7 @@ def check_step_curve(step: Path, host: str, spline: CurveSpline, path: Path | No
     c = curves[0]
     return checks + curve_checks(path, host, spline, params, degree=c.degree, rational=c.rational, poles=c.poles,
                                  knots=c.knots, samples=c.samples, param_range=(c.first, c.last),
-                                 periodic=c.periodic)
+                                 periodic=c.periodic, closed=c.closed)
 
 
 def read_step_shape(path: Path) -> Any:
@@ -220,4 +221,5 @@ def check_step_in_freecad(path: Path, spline: CurveSpline) -> list[Check]:
     c = curves[0]
     return checks + curve_checks(path, "freecad", spline, params, degree=c["degree"], rational=c["rational"],
                                  poles=c["poles"], knots=np.repeat(c["knots"], c["mults"]), samples=c["samples"],
-                                 param_range=c["range"], periodic=bool(c.get("periodic", False)))
+                                 param_range=c["range"], periodic=bool(c.get("periodic", False)),
+                                 closed=c.get("closed"))

@@ -2,7 +2,8 @@
 
 Host scripts are real files in :mod:`gsr_cad.exporters.hostside` (lintable Python modules and OpenSCAD
 files). :func:`fill_python` replaces the single line ``DATA = {}`` of such a module with ``DATA = <literal>``,
-where the literal is produced by :func:`literal` from plain data only: None, bools, ints, finite floats,
+(and inlines the shared pure-Python helpers of that folder at their ``# gsr:inline`` import line), where the
+literal is produced by :func:`literal` from plain data only: None, bools, ints, finite floats,
 strings (as ``repr``, which escapes quotes, newlines and NUL), and lists and str-keyed dicts of those.
 Anything else (numpy scalars, objects, NaN, infinities) is refused, and the text is parsed back to prove it
 is one literal expression. :func:`fill_scad` does the same for OpenSCAD: numbers and vectors of numbers
@@ -27,6 +28,7 @@ SCAD_COMMENT_MARKER = "// gsr:comment "
 _MAX_DEPTH = 12
 _INLINE = 100
 _LITERAL_NODES = (ast.Expression, ast.Constant, ast.List, ast.Dict, ast.UnaryOp, ast.USub, ast.Load)
+_INLINE_IMPORT = re.compile(r"from (\w+) import [\w, ]+  # gsr:inline")
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 .,:;()\[\]_+\-=/]")
 
 
@@ -84,14 +86,26 @@ def host_file(name: str) -> str:
     return resources.files("gsr_cad.exporters.hostside").joinpath(name).read_text(encoding="utf-8")
 
 
+def _inlined(module: str) -> str:
+    """The code of the hostside module ``module`` (a pure-Python helper) without its docstring."""
+    text = host_file(module + ".py")
+    body = ast.parse(text).body
+    start = body[1].lineno - 1 if body and isinstance(body[0], ast.Expr) and len(body) > 1 else 0
+    return "\n".join(text.split("\n")[start:]).strip("\n")
+
+
 def fill_python(name: str, data: Mapping[str, Any]) -> str:
-    """The hostside module ``name`` with its one ``DATA = {}`` line replaced by ``DATA = <literal of data>``."""
+    """The hostside module ``name`` with its one ``DATA = {}`` line replaced by ``DATA = <literal of data>`` and
+    every line ``from HELPER import ...  # gsr:inline`` by the code of the hostside module ``HELPER``."""
     text = host_file(name)
     lines = text.split("\n")
     hits = [i for i, line in enumerate(lines) if line == MARKER]
     if len(hits) != 1:
         raise ExportError(f"hostside/{name} must hold exactly one line {MARKER!r}")
     lines[hits[0]] = "DATA = " + literal(dict(data), indent=4)
+    for i, line in enumerate(lines):
+        if (match := _INLINE_IMPORT.fullmatch(line)) is not None:
+            lines[i] = _inlined(match.group(1))
     return "\n".join(lines)
 
 

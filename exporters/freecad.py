@@ -41,9 +41,11 @@ from .base import EXACT_TOL, SAMPLE_TOL, Check, Exporter, curve_checks, expect_e
 from .checks import PATCH_GRID, freecad_read
 from .encode import fill_python
 from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_model, patch_data, require_ops, \
-    same_mesh, surface_model, triangle_faces
+    same_mesh, surface_model, triangle_faces, xyz
 
 SAMPLES_PER_SPAN = 16
+CURVE_OPS = ("add_point", "move_point", "corner")
+"""The curve ops the macro's own replay knows (hostside/freecad_macro.py, ``OPS``)."""
 SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel")
 """The surface ops the macro's own replay knows (hostside/freecad_macro.py, ``PARAMETERS``)."""
 MESH_TOL = 1e-6
@@ -88,15 +90,16 @@ class FreecadMacroExporter(Exporter):
     kinds = ("curve", "surface")
     suffixes = (".FCMacro",)
     host = "freecad"
-    curve_forms = False
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         model = curve_model(result)
-        require_ops(result.genome, ("add_point", "move_point"), "FreeCAD macro")
+        require_ops(result.genome, CURVE_OPS, "FreeCAD macro")
         spline = model.spline
+        if model.history[0].corners:
+            raise ExportError("the FreeCAD macro replays templates without corners")
         text = fill_python("freecad_macro.py", {
             "kind": "curve", "doc_name": _doc_name(stem), "scheme": result.scheme, "degree": int(spline.degree),
-            "dimension": int(spline.poles.shape[1]),
+            "dimension": spline.dim, "closed": spline.closed,
             "steps": [{"label": h.label, "op": h.op, "points": h.points.tolist()} for h in model.history]})
         return {self.filename(stem): text}
 
@@ -157,16 +160,17 @@ class FreecadMacroExporter(Exporter):
                          [i == len(history) - 1 for i in range(len(history))]),
         ]
         if len(steps) == len(history):
-            dev = max(point_deviation(np.array(s["nodes"]),
-                                      np.column_stack([h.points, np.zeros(len(h.points))]))
-                      for s, h in zip(steps, history))
+            dev = max(point_deviation(np.array(s["nodes"]), xyz(h.points)) for s, h in zip(steps, history))
             checks.append(measured(path, host, "history polygons", dev, exact))
+            checks.append(expect_equal(path, host, "history corners", [s.get("corners") for s in steps],
+                                       [list(h.corners) for h in history]))
         curve = data.get("curve")
         if not curve or "poles" not in curve:
             return checks + [failed(path, host, "curve", f"no B-spline object 'Curve' ({curve})")]
         return checks + curve_checks(path, host, spline, params, degree=curve["degree"], rational=curve["rational"],
                                      poles=curve["poles"], knots=np.repeat(curve["knots"], curve["mults"]),
-                                     samples=curve["samples"], param_range=curve["range"])
+                                     samples=curve["samples"], param_range=curve["range"],
+                                     periodic=curve["periodic"], closed=curve["closed"])
 
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         model = surface_model(result)

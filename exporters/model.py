@@ -32,12 +32,22 @@ _CACHE = "_gsr_export_model"
 
 @dataclasses.dataclass(frozen=True)
 class CurveSpline:
-    """A curve result as CAD sees it: poles, degree and the clamped knot vector on [0, 1] (uniform, or with
-    repeated knots at corners and where a closed curve was cut open; see ``bspline.clamped_form``)."""
+    """A curve result as CAD sees it: poles (2-D or 3-D), degree and the clamped knot vector on [0, 1]
+    (uniform, or with repeated knots at corners and where a closed curve was cut open; see
+    ``bspline.clamped_form``). ``control``, ``closed`` and ``corners`` keep the form it came from, so a host
+    that holds periodic curves gets :meth:`periodic_form` (the control points themselves)."""
 
     poles: np.ndarray
     degree: int
     knots: np.ndarray
+    closed: bool = False
+    corners: tuple[int, ...] = ()
+    control: np.ndarray | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 for a planar (x, y) curve, 3 for a space curve."""
+        return int(self.poles.shape[1])
 
     @property
     def breakpoints(self) -> np.ndarray:
@@ -69,7 +79,7 @@ class CurveSpline:
         return np.asarray(BSpline(self.knots, self.poles, self.degree)(np.asarray(params, dtype=float)))
 
     def bezier(self) -> np.ndarray:
-        """Exact Bezier pieces ``(n_spans, degree + 1, 2)``, one per knot span, in order."""
+        """Exact Bezier pieces ``(n_spans, degree + 1, dim)``, one per knot span, in order."""
         return bspline.bezier_pieces(self.knots, self.poles, self.degree)
 
     def params(self, per_span: int) -> np.ndarray:
@@ -80,6 +90,31 @@ class CurveSpline:
         """A polyline close to the curve (for stroke widths, not for exact comparisons)."""
         return self.points(self.params(per_span))
 
+    def periodic_forms(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """The exact periodic representations ``(poles, distinct knots, multiplicities)`` of a closed curve on
+        [0, 1] (OCCT's convention: first and last multiplicity equal, poles = their sum minus the last): the
+        control points with the form's knots of one period (what a host given the periodic curve holds), and
+        the clamped form with its repeated end pole dropped (what a STEP reader makes of our clamped closed
+        curve). Empty for an open curve."""
+        if not self.closed or self.control is None:
+            return []
+        k, n = self.degree, len(self.control)
+        t = bspline.form_knots(n, k, True, self.corners)
+        zeros = np.flatnonzero(t == 0.0)
+        values, mults = np.unique(t[k:k + n + 1], return_counts=True)
+        mults[0] = mults[-1] = len(zeros)
+        # a knot of multiplicity m at 0 with j of its copies after t[k] shifts the first pole by j
+        own = (np.roll(self.control, -(int(zeros[-1]) - k), axis=0), values, mults)
+        ends = self.multiplicities.copy()
+        ends[0] = ends[-1] = k
+        return [own, (self.poles[:-1], self.breakpoints, ends)]
+
+
+def xyz(points: Any) -> np.ndarray:
+    """Points as (x, y, z) rows: planar rows get z = 0, space rows are kept."""
+    a = np.asarray(points, dtype=float)
+    return np.column_stack([a, np.zeros(len(a))]) if a.ndim == 2 and a.shape[1] == 2 else a
+
 
 def curve_spline(result: Any) -> CurveSpline:
     """The B-spline of a curve result; ExportError when it has too few or non-finite control points."""
@@ -87,28 +122,29 @@ def curve_spline(result: Any) -> CurveSpline:
         raise ExportError(f"expected a curve result, got a {result.kind} result")
     poles = np.asarray(result.control_points, dtype=float)
     degree = int(result.degree)
-    if poles.ndim != 2 or poles.shape[1] != 2 or not np.all(np.isfinite(poles)):
-        raise ExportError("curve control points must be finite [x, y] rows")
+    if poles.ndim != 2 or poles.shape[1] not in (2, 3) or not np.all(np.isfinite(poles)):
+        raise ExportError("curve control points must be finite [x, y] or [x, y, z] rows")
     if len(poles) < degree + 1:
         raise ExportError(f"a degree-{degree} curve needs at least {degree + 1} control points, got {len(poles)}")
     cfg = result.config or {}
     closed, corners = bool(cfg.get("closed", False)), tuple(cfg.get("corners") or ())
     if not closed and not corners:
-        return CurveSpline(poles, degree, bspline.clamped_uniform_knots(len(poles), degree))
+        return CurveSpline(poles, degree, bspline.clamped_uniform_knots(len(poles), degree), control=poles)
     try:  # closed (periodic) or cornered: its exact clamped form, corners as repeated knots
         knots, clamped = bspline.clamped_form(poles, degree, closed, corners)
     except GsrError as exc:
         raise ExportError(f"the curve's closed/corner form is invalid: {exc}") from None
-    return CurveSpline(clamped, degree, knots)
+    return CurveSpline(clamped, degree, knots, closed, tuple(int(c) for c in corners), poles)
 
 
 @dataclasses.dataclass(frozen=True)
 class HistoryStep:
-    """The control polygon after one op (``op`` None for the template), with a readable label."""
+    """The control polygon and its corners after one op (``op`` None for the template), with a readable label."""
 
     label: str
     op: dict[str, Any] | None
     points: np.ndarray
+    corners: tuple[int, ...] = ()
 
 
 def _fmt_pair(v: Sequence[float]) -> str:
@@ -125,6 +161,8 @@ def op_label(number: int, op: dict[str, Any] | None, width: int = 2) -> str:
         return f"{head} add point {op['index']} at {_fmt_pair(op['position'])}"
     if name == "move_point":
         return f"{head} move point {op['index']} by {_fmt_pair(op['delta'])}"
+    if name == "corner":
+        return f"{head} corner at point {op['index']}"
     fields = ", ".join(f"{k}={v}" for k, v in op.items() if k != "op")
     return f"{head} {name.replace('_', ' ')} {fields}".rstrip()
 
@@ -148,7 +186,7 @@ def curve_history(result: Any) -> list[HistoryStep]:
     states = _replayed(result)
     width = max(2, len(str(len(result.genome))))
     ops: list[dict[str, Any] | None] = [None, *(op.to_json() for op in result.genome)]
-    return [HistoryStep(op_label(i, op, width), op, np.asarray(s.points))
+    return [HistoryStep(op_label(i, op, width), op, np.asarray(s.points), tuple(int(c) for c in s.corners))
             for i, (op, s) in enumerate(zip(ops, states))]
 
 

@@ -120,6 +120,7 @@ class OpenscadExporter(Exporter):
     kinds = ("curve", "surface")
     suffixes = (".scad",)
     host = "openscad"
+    curve_dims = (2,)
 
     def render_curve(self, result: Any, stem: str) -> dict[str, str]:
         spline = curve_model(result).spline
@@ -128,7 +129,7 @@ class OpenscadExporter(Exporter):
         title = (f"{len(spline.poles)} control points, {result.scheme} curve of degree {spline.degree}, "
                  f"{len(points)} samples")
         text = fill_scad("curve.scad", {"width": float(width), "gsr_curve_points": points.tolist(),
-                                        "gsr_control_points": spline.poles.tolist(),
+                                        "gsr_control_points": spline.poles.tolist(), "gsr_closed": spline.closed,
                                         "gsr_unit": int(drawing_unit(spline))}, {"title": [title]})
         return {self.filename(stem): text}
 

@@ -1,6 +1,7 @@
 """STEP export through OCP (the OpenCascade binding build123d brings): curves and limit surfaces.
 
-Curves: the exact B-spline as one edge.
+Curves: the exact B-spline as one edge, planar (in z = 0) or in space; corners are repeated knots, a closed
+curve its exact clamped form (first and last pole the same point), which readers may hold as periodic.
 
 The curve is written as a ``Geom_BSplineCurve`` built from our poles, distinct knots, multiplicities and
 degree: what ``build123d.Edge.make_bspline`` builds, without importing build123d (3x slower to import
@@ -32,7 +33,7 @@ from gsr_cad.geometry.patches import PatchSet
 from .base import Check, Exporter, skipped
 from .checks import (sub_shapes, check_step_curve, check_step_in_freecad, check_step_surface, patch_statement,
                      stated_deviation)
-from .model import CurveSpline, curve_model, surface_model
+from .model import CurveSpline, curve_model, surface_model, xyz
 
 SEW_TOLERANCE = 1e-7
 """Sewing tolerance relative to the diagonal: shared patch edges are the same curve up to rounding."""
@@ -49,15 +50,16 @@ def _arrays():
 
 
 def bspline_edge(spline: CurveSpline) -> Any:
-    """The curve as an OCP ``TopoDS_Edge`` on an exact, non-rational ``Geom_BSplineCurve`` in z = 0."""
+    """The curve as an OCP ``TopoDS_Edge`` on an exact, non-rational ``Geom_BSplineCurve`` (a planar curve in
+    z = 0, a space curve as it is)."""
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
     from OCP.Geom import Geom_BSplineCurve
     from OCP.gp import gp_Pnt
 
     point_array, real_array, int_array = _arrays()
     poles = point_array(1, len(spline.poles))
-    for i, (x, y) in enumerate(spline.poles.tolist(), start=1):
-        poles.SetValue(i, gp_Pnt(x, y, 0.0))
+    for i, (x, y, z) in enumerate(xyz(spline.poles).tolist(), start=1):
+        poles.SetValue(i, gp_Pnt(x, y, z))
     knots = real_array(1, len(spline.breakpoints))
     mults = int_array(1, len(spline.breakpoints))
     for i, (k, m) in enumerate(zip(spline.breakpoints.tolist(), spline.multiplicities.tolist()), start=1):

@@ -1,7 +1,8 @@
 """SVG export: the curve as its exact Bezier pieces in one path, plus the dashed control polygon.
 
-A clamped uniform cubic B-spline is a chain of cubic Beziers (``C``) and the Chaikin limit a chain of
-quadratic ones (``Q``), so the path *is* the curve, not an approximation. Coordinates are written as our
+A clamped cubic B-spline is a chain of cubic Beziers (``C``) and the Chaikin limit a chain of quadratic ones
+(``Q``), one per knot span, corners included, so the path *is* the curve, not an approximation; a closed
+curve's path ends with ``Z``. SVG is planar: 3D curves are refused (``curve_dims``). Coordinates are written as our
 numbers (shortest exact text) inside a ``scale(1 -1)`` group, so y points up as in the data; the viewBox
 fits the control polygon with a 5 % margin. Validation parses the file with svgelements (an independent
 SVG reader that applies viewBox and transforms), maps its page coordinates back through the view we
@@ -60,7 +61,8 @@ def view_of(spline: CurveSpline) -> View:
 
 
 def path_data(spline: CurveSpline) -> str:
-    """The SVG path ``d`` of the curve: ``M`` then one ``C`` (cubic) or ``Q`` (quadratic) per knot span."""
+    """The SVG path ``d`` of the curve: ``M`` then one ``C`` (cubic) or ``Q`` (quadratic) per knot span, and
+    ``Z`` when the curve is closed (its last piece already ends on the first point: the close is a join)."""
     if spline.degree not in _COMMANDS:
         raise ExportError(f"SVG paths hold quadratic or cubic Beziers only, not degree {spline.degree}")
     pieces = spline.bezier()
@@ -68,7 +70,7 @@ def path_data(spline: CurveSpline) -> str:
     cmd = _COMMANDS[spline.degree]
     for piece in pieces:
         parts.append(cmd + " " + " ".join(f"{num(x)} {num(y)}" for x, y in piece[1:]))
-    return " ".join(parts)
+    return " ".join(parts + (["Z"] if spline.closed else []))
 
 
 class SvgExporter(Exporter):
@@ -78,6 +80,7 @@ class SvgExporter(Exporter):
     kinds = ("curve",)
     suffixes = (".svg",)
     host = "svgelements"
+    curve_dims = (2,)
 
     def export_curve(self, result: Any, out_dir: Path, stem: str) -> list[Path]:
         spline = curve_model(result).spline
@@ -129,9 +132,12 @@ class SvgExporter(Exporter):
 
     def _check_path(self, path: Path, curve: Any, spline: CurveSpline, view: View, se: Any) -> list[Check]:
         kind = se.CubicBezier if spline.degree == 3 else se.QuadraticBezier
-        segments = [s for s in curve if not isinstance(s, se.Move)]
+        segments = [s for s in curve if not isinstance(s, (se.Move, se.Close))]
+        closes = [i for i, s in enumerate(curve) if isinstance(s, se.Close)]
         checks = [expect_equal(path, self.host, f"{kind.__name__} segments",
-                               (len(segments), all(isinstance(s, kind) for s in segments)), (spline.n_spans, True))]
+                               (len(segments), all(isinstance(s, kind) for s in segments)), (spline.n_spans, True)),
+                  expect_equal(path, self.host, "closed path (Z at the end)" if spline.closed else "open path",
+                               closes, [len(curve) - 1] if spline.closed else [])]
         if not checks[0].passed:
             return checks
         t = np.linspace(0.0, 1.0, SAMPLES_PER_SPAN + 1)

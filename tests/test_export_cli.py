@@ -149,3 +149,26 @@ def test_curve_then_replay_reproduces_the_exports(gsr, tmp_path):
         assert (again / name).read_bytes() == (first / name).read_bytes(), name
     check = gsr("validate", again)
     assert check.code == 0 and "curve.dxf" in check.out
+
+
+def test_a_closed_3d_curve_end_to_end_through_the_cli(gsr, tmp_path):
+    """``gsr curve`` on (x, y, z) data writes every format that carries a space curve (SVG and OpenSCAD are
+    skipped with a warning), the manifest lists exactly those files, and ``gsr validate`` passes them all."""
+    s = np.linspace(0.0, 2.0 * np.pi, 160, endpoint=False)
+    data = tmp_path / "ring.csv"
+    np.savetxt(data, np.c_[np.cos(s), np.sin(s), 0.3 * np.sin(2.0 * s)], delimiter=",")
+    out = tmp_path / "out"
+    run = gsr("curve", data, "-o", out, "--seed", "1", "--quiet", "--formats", "step,dxf,cadquery,fcmacro")
+    assert run.code == 0, run.err
+    result = json.loads((out / "result.json").read_text())
+    assert result["config"]["closed"] and len(result["control_points"][0]) == 3
+    manifest = json.loads((out / "exports.json").read_text())["files"]
+    assert sorted(manifest) == ["curve.FCMacro", "curve.dxf", "curve.step", "curve_cadquery.py"]
+    assert gsr("replay", out, "-o", out, "--formats", "svg").code == 2  # planar by nature: refused, one line
+    check = gsr("validate", out)
+    assert check.code == 0, check.out
+    rows = check.out.strip().splitlines()[1:-1]
+    assert {r.split()[0] for r in rows} == set(manifest)
+    if hosts.find_host("freecad"):
+        assert any(r.startswith("curve.FCMacro") and " periodic poles " in r and " pass " in r for r in rows)
+    assert sorted(json.loads((out / "exports.json").read_text())["files"]) == sorted(manifest)

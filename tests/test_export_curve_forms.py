@@ -1,6 +1,8 @@
-"""Closed and cornered curves in the exports: the formats that carry them exactly do, and pass their host
-round trips; the history scripts that cannot yet are skipped by a default export (with a warning) and refused
-when asked for, never written wrong."""
+"""Closed, cornered and 3D curves in every export: curves reconstructed through the API are exported in every
+format that carries them and re-read by the real hosts (OCP, FreeCAD, ezdxf, Blender, CadQuery, svgelements,
+OpenSCAD), which must give back our curve: closed curves as closed (periodic where the host has periodic
+curves), corners as repeated knots or Bezier joints, space curves with their z. SVG and OpenSCAD are planar by
+nature and refuse 3D curves (a default export skips them with a warning)."""
 
 from __future__ import annotations
 
@@ -11,52 +13,228 @@ import pytest
 
 import gsr_cad
 from gsr_cad.errors import ExportError, GsrWarning
+from gsr_cad.exporters import hosts
+from gsr_cad.exporters.base import curve_checks
+from gsr_cad.exporters.model import curve_spline
+from gsr_cad.geometry import bspline
 from gsr_cad.reconstruct.curve import reconstruct_curve
 from gsr_cad.reconstruct.export import default_formats
 from gsr_cad.reconstruct.inputs import curve_target
 
+PLANAR_ONLY = {"svg", "scad"}
+
+
+def _square() -> np.ndarray:
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]])
+    return np.vstack([np.linspace(corners[i], corners[i + 1], 40, endpoint=False) for i in range(4)])
+
+
+def _vee3d() -> np.ndarray:
+    a = np.linspace([0.0, 1.0, 0.0], [0.5, 0.0, 0.2], 60, endpoint=False)
+    return np.vstack([a, np.linspace([0.5, 0.0, 0.2], [1.0, 1.0, 0.0], 60)])
+
+
+def _helix() -> np.ndarray:
+    t = np.linspace(0.0, 4.0 * np.pi, 300)
+    return np.c_[np.cos(t), np.sin(t), 0.2 * t]
+
+
+def _ring3d() -> np.ndarray:
+    s = np.linspace(0.0, 2.0 * np.pi, 200, endpoint=False)
+    return np.c_[np.cos(s), np.sin(s), 0.3 * np.sin(2.0 * s)]
+
+
+CASES = {"square": (_square, True, True, 2), "vee3d": (_vee3d, False, True, 3), "helix": (_helix, False, False, 3),
+         "ring3d": (_ring3d, True, False, 3), "square-chaikin": (_square, True, True, 2)}
+"""name: (data, closed, cornered, dimension) as the reconstruction must find them (a "-chaikin" case is
+reconstructed with the Chaikin scheme: quadratic B-splines)."""
+
 
 @pytest.fixture(scope="module")
-def square_result():
-    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]])
-    pts = np.vstack([np.linspace(corners[i], corners[i + 1], 40, endpoint=False) for i in range(4)])
-    result = reconstruct_curve(curve_target(pts), seed=1)
-    assert result.config["closed"] and result.config["corners"]
-    return result
+def results():
+    out = {}
+    for name, (data, closed, cornered, dim) in CASES.items():
+        result = reconstruct_curve(curve_target(data()), seed=1,
+                                   scheme="chaikin" if name.endswith("-chaikin") else "bspline")
+        assert (bool(result.config["closed"]), bool(result.config["corners"])) == (closed, cornered), name
+        assert np.asarray(result.control_points).shape[1] == dim, name
+        out[name] = result
+    return out
 
 
-def test_default_export_skips_what_cannot_carry_the_form_and_says_so(square_result, tmp_path):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        files = gsr_cad.export(square_result, tmp_path)
-    skipped = {str(w.message).split()[1] for w in caught if issubclass(w.category, GsrWarning)}
-    assert skipped == {"blender", "fcmacro"} & set(default_formats("curve"))
-    assert not any(p.name.endswith(("_blender.py", ".FCMacro")) for p in files)
-    assert {p.suffix for p in files} >= {".step", ".dxf", ".svg"}
+@pytest.fixture(scope="module")
+def validated(results, tmp_path_factory):
+    """Every case exported in its default formats and validated once: name -> (files, warnings, checks)."""
+    out = {}
+    for name, result in results.items():
+        folder = tmp_path_factory.mktemp(name)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            files = gsr_cad.export(result, folder)
+        result.save(folder)
+        out[name] = ({p.name for p in files}, [str(w.message) for w in caught if issubclass(w.category, GsrWarning)],
+                     gsr_cad.validate(folder))
+    return out
 
 
-@pytest.mark.parametrize("fmt", ["fcmacro", "blender"])
-def test_an_explicit_format_that_cannot_carry_it_is_refused(square_result, tmp_path, fmt):
-    with pytest.raises(ExportError, match="cannot carry this result"):
-        gsr_cad.export(square_result, tmp_path, [fmt])
-    assert not any(tmp_path.iterdir())
-
-
-def test_closed_cornered_exports_pass_their_round_trips(square_result, tmp_path):
-    gsr_cad.export(square_result, tmp_path, ["step", "dxf", "svg"])
-    square_result.save(tmp_path)
-    checks = gsr_cad.validate(tmp_path)
-    failed = [(c.file, c.check, c.detail) for c in checks if c.status == "FAIL"]
+@pytest.mark.parametrize("name", list(CASES))
+def test_every_format_that_carries_the_curve_passes_its_host_round_trip(validated, name):
+    files, _, checks = validated[name]
+    failed = [(c.file, c.host, c.check, c.detail) for c in checks if c.status == "FAIL"]
     assert checks and not failed, failed
-    assert {c.file for c in checks if c.status == "pass"} >= {"curve.step", "curve.dxf", "curve.svg"}
+    dim = CASES[name][3]
+    expected = set(default_formats("curve")) - (PLANAR_ONLY if dim == 3 else set())
+    suffix = {"step": ".step", "dxf": ".dxf", "svg": ".svg", "scad": ".scad", "fcmacro": ".FCMacro",
+              "blender": "_blender.py", "cadquery": "_cadquery.py"}
+    assert {fmt for fmt in expected if "curve" + suffix[fmt] in files} == expected
+    judges = {"OCP", "ezdxf"} | {h for h in ("freecad", "blender") if hosts.find_host(h)}
+    judges |= {"cadquery"} if hosts.cadquery_python() else set()
+    if dim == 2:
+        judges |= {"svgelements"} | ({"openscad"} if hosts.find_host("openscad") else set())
+    assert judges <= {c.host for c in checks if c.status == "pass"}
 
 
-def test_a_3d_curve_is_refused_by_the_planar_formats_not_written_flat(tmp_path):
-    t = np.linspace(0.0, 4.0 * np.pi, 300)
-    result = reconstruct_curve(curve_target(np.c_[np.cos(t), np.sin(t), 0.2 * t]), seed=1)
-    assert np.asarray(result.control_points).shape[1] == 3
-    with pytest.raises(ExportError, match="3D"):
-        gsr_cad.export(result, tmp_path, ["step"])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", GsrWarning)
-        assert gsr_cad.export(result, tmp_path) == []
+@pytest.mark.parametrize("name", list(CASES))
+def test_the_hosts_see_the_form_closed_periodic_cornered_and_in_space(validated, results, name):
+    _, _, checks = validated[name]
+    closed, cornered, dim = CASES[name][1:]
+    passed = {(c.file, c.check) for c in checks if c.status == "pass"}
+    # the closed flag of OCP (STEP, CadQuery), FreeCAD and the DXF SPLINE says whether the curve is closed
+    for file in ("curve.step", "curve.dxf", "curve_cadquery.py"):
+        assert (file, "closed") in passed
+    # a closed curve is periodic in OCCT: the STEP reader's form and the macro's own periodic B-spline
+    periodic = {c.file for c in checks if c.check == "periodic poles" and c.status == "pass"}
+    macro = {"curve.FCMacro"} if hosts.find_host("freecad") else set()
+    assert periodic == ({"curve.step", "curve_cadquery.py"} | macro if closed else set())
+    if hosts.find_host("freecad"):
+        assert ("curve.FCMacro", "history corners") in passed
+        assert ("curve.FCMacro", "closed") in passed
+    if hosts.find_host("blender"):
+        assert ("curve_blender.py", "Bezier spline, free handles, cyclic if closed") in passed
+    if dim == 2:
+        assert ("curve.svg", "closed path (Z at the end)" if closed else "open path") in passed
+    spline = curve_spline(results[name])
+    assert spline.dim == dim and spline.closed == closed
+    if cornered:  # corners are knots of multiplicity degree in the exported form
+        assert spline.multiplicities[1:-1].max() == spline.degree
+    for c in checks:  # exact formats agree far below the tolerance (Blender keeps single precision)
+        if c.status == "pass" and c.deviation is not None and c.host not in ("blender", "openscad"):
+            assert c.deviation <= 1e-9 * spline.scale, (c.file, c.host, c.check, c.deviation)
+
+
+def test_3d_curves_skip_the_planar_formats_with_a_warning_and_refuse_them_when_asked(validated, results, tmp_path):
+    for name in ("helix", "ring3d", "vee3d"):
+        files, caught, _ = validated[name]
+        assert {msg.split()[1] for msg in caught} == PLANAR_ONLY & set(default_formats("curve"))
+        assert all("3D" in msg for msg in caught)
+        assert not any(f.endswith((".svg", ".scad")) for f in files)
+    for fmt in PLANAR_ONLY:
+        with pytest.raises(ExportError, match="planar by nature"):
+            gsr_cad.export(results["helix"], tmp_path, [fmt])
+    assert not any(tmp_path.iterdir())
+    assert not validated["square"][1]  # a planar closed cornered curve: every format carries it
+
+
+@pytest.mark.parametrize("degree", [2, 3])
+def test_the_periodic_form_is_the_curve_in_occt_for_every_corner_placement(degree):
+    """Our periodic form (control points turned by the copies of the knot at 0 after t[k]) built as an OCCT
+    periodic B-spline evaluates to our closed curve, corners at the seam included."""
+    pytest.importorskip("OCP")
+    from OCP.Geom import Geom_BSplineCurve
+    from OCP.gp import gp_Pnt
+
+    from gsr_cad.exporters.step import _arrays
+
+    point_array, real_array, int_array = _arrays()
+    rng = np.random.default_rng(7)
+    n, k = 9, degree
+    u = np.linspace(0.0, 1.0, 97)
+    for corners in [(), (0,), (1,), (n - 1,), (n - 2,), (2, 6), (0, 4), (1, 5 + (k == 2))]:
+        ctrl = rng.normal(size=(n, 3))
+        want = bspline.make_spline(ctrl, k, True, corners)(u)
+        knots, clamped = bspline.clamped_form(ctrl, k, True, corners)
+        spline = curve_spline_of(ctrl, k, corners, knots, clamped)
+        for poles, values, mults in spline.periodic_forms():
+            pa, ka, ma = point_array(1, len(poles)), real_array(1, len(values)), int_array(1, len(values))
+            for i, p in enumerate(poles.tolist(), start=1):
+                pa.SetValue(i, gp_Pnt(*p))
+            for i, (v, m) in enumerate(zip(values.tolist(), mults.tolist()), start=1):
+                ka.SetValue(i, v)
+                ma.SetValue(i, int(m))
+            curve = Geom_BSplineCurve(pa, ka, ma, k, True)
+            got = np.array([[p.X(), p.Y(), p.Z()] for p in (curve.Value(float(x)) for x in u)])
+            assert np.abs(got - want).max() < 1e-12, (corners, len(poles))
+
+
+def curve_spline_of(ctrl, degree, corners, knots, clamped):
+    from gsr_cad.exporters.model import CurveSpline
+
+    return CurveSpline(clamped, degree, knots, True, tuple(corners), ctrl)
+
+
+def test_a_periodic_curve_off_by_one_pole_or_an_open_curve_read_as_closed_fails(results):
+    spline = curve_spline(results["ring3d"])
+    params = spline.params(4)
+    poles, values, mults = spline.periodic_forms()[0]
+    good = curve_checks("x", "host", spline, params, degree=spline.degree, rational=False, poles=poles,
+                        knots=np.repeat(values, mults), samples=spline.points(params), periodic=True, closed=True)
+    assert all(c.status == "pass" for c in good)
+    turned = curve_checks("x", "host", spline, params, degree=spline.degree, rational=False,
+                          poles=np.roll(poles, 1, axis=0), knots=np.repeat(values, mults), samples=None, periodic=True)
+    assert {c.check: c.status for c in turned}["periodic poles"] == "FAIL"
+    vee = curve_spline(results["vee3d"])
+    wrong = curve_checks("x", "host", vee, params, degree=vee.degree, rational=False, poles=vee.poles,
+                         knots=vee.knots, samples=None, closed=True)
+    assert {c.check: c.status for c in wrong}["closed"] == "FAIL"
+
+
+def test_a_dxf_spline_that_lost_its_closed_flag_or_its_z_fails(results, tmp_path):
+    pytest.importorskip("ezdxf")
+    import ezdxf
+
+    from gsr_cad.exporters.dxf import CURVE_LAYER, DxfExporter
+
+    exporter = DxfExporter()
+    (path,) = exporter.export(results["ring3d"], tmp_path, "curve")
+    assert all(c.status == "pass" for c in exporter.validate(path, results["ring3d"]))
+    doc = ezdxf.readfile(path)
+    (entity,) = doc.modelspace().query(f'SPLINE[layer=="{CURVE_LAYER}"]')
+    entity.dxf.flags = entity.dxf.flags & ~1
+    entity.control_points = [(x, y, 0.0) for x, y, _ in entity.control_points]
+    doc.saveas(path)
+    got = {c.check: c.status for c in exporter.validate(path, results["ring3d"])}
+    assert got["closed"] == "FAIL" and got["poles"] == "FAIL"
+
+
+def _host_helper() -> dict:
+    """The pure-Python helper the FreeCAD macro and the Blender script inline (hostside/curve_knots.py)."""
+    import runpy
+    from importlib import resources
+
+    return runpy.run_path(str(resources.files("gsr_cad.exporters.hostside").joinpath("curve_knots.py")))
+
+
+@pytest.mark.parametrize("degree", [2, 3])
+def test_the_host_scripts_knots_and_bezier_pieces_are_gsr_cads(degree):
+    """The knots the host scripts compute for themselves, and the Blender script's Bezier pieces, are exactly
+    those of gsr_cad.geometry.bspline, for open and closed curves with corners anywhere (seam included)."""
+    from gsr_cad.exporters.encode import fill_python, host_file
+
+    helper = _host_helper()
+    for script in ("freecad_macro.py", "blender_curve.py"):  # both inline the helper
+        assert "  # gsr:inline" in host_file(script) and "def form_knots(" in fill_python(script, {})
+    rng = np.random.default_rng(11)
+    k = degree
+    for n, closed, corners in [(4, False, ()), (9, False, ()), (9, False, (k,)), (12, False, (k, 2 * k + 1)),
+                               (9, True, ()), (9, True, (0,)), (9, True, (1,)), (9, True, (8,)), (10, True, (2, 7)),
+                               (3 * k + 1, True, (0, k, 2 * k))]:
+        assert helper["form_knots"](n, k, closed, corners) == bspline.form_knots(n, k, closed, corners).tolist()
+        ctrl = rng.normal(size=(n, 3))
+        knots, clamped = bspline.clamped_form(ctrl, k, closed, corners)
+        got = np.array(helper["bezier_pieces"](ctrl.tolist(), k, closed, corners))
+        np.testing.assert_allclose(got, bspline.bezier_pieces(knots, clamped, k), rtol=0, atol=1e-12)
+        if closed:
+            poles, values, mults = helper["periodic_form"](ctrl.tolist(), k, corners)
+            ours = curve_spline_of(ctrl, k, corners, knots, clamped).periodic_forms()[0]
+            np.testing.assert_array_equal(poles, ours[0])
+            assert values == ours[1].tolist() and mults == ours[2].tolist()

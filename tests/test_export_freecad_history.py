@@ -32,7 +32,8 @@ def state():
         feature = doc.getObject("Curve")
         curve = feature.Shape.Edges[0].Curve
         out.update(poles=[[p.x, p.y] for p in curve.getPoles()], knots=curve.getKnots(),
-                   mults=curve.getMultiplicities(), length=feature.Shape.Length)
+                   mults=curve.getMultiplicities(), length=feature.Shape.Length, periodic=curve.isPeriodic(),
+                   corners=[list(obj.Corners) for obj in steps])
     else:
         out["limit"] = [[p.x, p.y, p.z] for p in doc.getObject("LimitMesh").Mesh.Topology[0]]
     return out
@@ -92,6 +93,48 @@ def test_editing_an_op_in_freecad_recomputes_the_later_ops_and_the_curve(tmp_pat
     assert after["mults"] == before["mults"] and np.allclose(after["knots"], model.spline.breakpoints, atol=1e-12)
 
 
+
+
+@pytest.mark.freecad
+def test_editing_an_op_of_a_closed_cornered_curve_keeps_it_periodic_with_its_corners(tmp_path):
+    """FreeCAD's recompute after an edit is gsr_cad's replay of the edited genome: the same periodic B-spline
+    (poles, knots, corner multiplicities)."""
+    if hosts.find_host("freecad") is None:
+        pytest.skip("FreeCAD (freecadcmd) is not installed")
+    import dataclasses
+
+    from test_export_curve_forms import _square
+
+    from gsr_cad.errors import GsrError
+    from gsr_cad.exporters.model import curve_spline
+    from gsr_cad.reconstruct.curve import reconstruct_curve
+    from gsr_cad.reconstruct.inputs import curve_target
+
+    result = reconstruct_curve(curve_target(_square()), seed=1)
+    assert result.config["closed"] and result.config["corners"]
+    genome = list(result.genome)
+    for k, op in enumerate(genome):  # the first move whose edit (0.01 further in y) still replays in gsr_cad
+        if op.name != "move_point":
+            continue
+        new = dataclasses.replace(op, delta=(op.delta[0], op.delta[1] + 0.01))
+        edited = dataclasses.replace(result, genome=(*genome[:k], new, *genome[k + 1:]))
+        try:
+            want = curve_spline(edited)
+        except GsrError:
+            continue
+        break
+    else:
+        pytest.fail("no move op to edit")
+    assert any(o.name == "corner" for o in genome[k + 1:])  # the corners come after the edited op
+    (macro,) = FreecadMacroExporter().export(result, tmp_path, "curve")
+    before, after = _edit(macro, tmp_path, k + 1, "Delta", [new.delta[0], new.delta[1], 0.0])
+    poles, values, mults = want.periodic_forms()[0]
+    assert before["periodic"] and after["periodic"]
+    np.testing.assert_allclose(after["poles"], poles, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(after["knots"], values, rtol=0, atol=1e-12)
+    assert after["mults"] == mults.tolist() == before["mults"]
+    assert after["corners"][-1] == list(edited.states[-1].corners)
+    assert not np.allclose(after["poles"], before["poles"])
 
 
 @pytest.mark.freecad

@@ -127,7 +127,7 @@ def test_replay_saves_the_host_documents(gsr, tmp_path):
                           text=True, timeout=300)
     line = next(x for x in proc.stdout.splitlines() if x.startswith("OBJECTS "))
     names = json.loads(line[len("OBJECTS "):])
-    assert "curve" in names and len(names) == len(result.genome) + 2  # the steps and the NURBS curve, no cube
+    assert "curve" in names and len(names) == len(result.genome) + 2  # the steps and the Bezier curve, no cube
     bad = gsr("replay", tmp_path / "in", "-o", tmp_path / "out2", "--fcstd", tmp_path / "x.step")
     assert bad.code == 2 and "--fcstd needs a file name ending in .fcstd" in bad.err
     assert not (tmp_path / "out2").exists()

@@ -1,10 +1,13 @@
-"""A gsr_cad curve for Blender 3.4: the modelling history replayed, then the NURBS curve.
+"""A gsr_cad curve for Blender 3.4: the modelling history replayed, then the exact curve as a Bezier spline.
 
 Written by gsr_cad's "blender" exporter; everything specific to this curve is in DATA below. The history
-is replayed op by op on the template polygon: after every step a hidden poly-curve object named after it
-(in the collection "<name> history"; the last step stays visible as the control polygon) shows the
-control polygon at that point. The result is a NURBS curve with endpoint knots: exactly the clamped
-uniform B-spline of DATA["degree"]. Edit an op in DATA["steps"] and run the script again.
+is replayed op by op (add, move, corner) on the template polygon: after every step a hidden poly-curve
+object named after it (in the collection "<name> history"; the last step stays visible as the control
+polygon) shows the control polygon at that point. The curve is the B-spline of DATA["degree"] on the last
+polygon, open (clamped) or closed (periodic, DATA["closed"]), every corner a knot of multiplicity degree,
+in the plane or in space. Blender's NURBS cannot repeat interior knots, so the script converts the B-spline
+into its exact Bezier pieces (knot insertion; quadratic pieces raised to cubic) and builds a Bezier spline
+with free handles, cyclic when closed. Edit an op in DATA["steps"] and run the script again.
 
 Run it in Blender's Text Editor, or headless:
     blender -b --factory-startup --python this_file.py -- [--json built.json] [--blend out.blend]
@@ -15,39 +18,73 @@ import json
 import sys
 
 import bpy
+from curve_knots import bezier_pieces  # gsr:inline
 
 DATA = {}
 
 
-def add_point(points, index, position):
-    """Insert a control point so that it becomes points[index]."""
+def add_point(points, corners, index, position):
+    """Insert a control point so that it becomes points[index]; later corners keep their points."""
     points.insert(index, tuple(position))
+    corners[:] = [c + (c >= index) for c in corners]
 
 
-def move_point(points, index, delta):
+def move_point(points, corners, index, delta):
     """Translate points[index] by delta."""
     points[index] = tuple(c + d for c, d in zip(points[index], delta))
 
 
-OPS = {"add_point": add_point, "move_point": move_point}
+def corner(points, corners, index):
+    """Make points[index] a C0 corner (a knot of multiplicity degree)."""
+    corners[:] = sorted(set(corners) | {index})
+
+
+OPS = {"add_point": add_point, "move_point": move_point, "corner": corner}
 
 
 def _xyz(p):
     return (float(p[0]), float(p[1]), float(p[2]) if len(p) > 2 else 0.0)
 
 
-def curve_object(name, points, kind, collection):
-    """A curve object through `points`: kind "POLY" (control polygon) or "NURBS"."""
+def cubic(piece):
+    """A quadratic Bezier piece raised exactly to a cubic one (cubic pieces are kept)."""
+    if len(piece) == 4:
+        return piece
+    p0, p1, p2 = piece
+    return [p0, tuple(a + 2.0 * (b - a) / 3.0 for a, b in zip(p0, p1)),
+            tuple(c + 2.0 * (b - c) / 3.0 for b, c in zip(p1, p2)), p2]
+
+
+def polygon_object(name, points, collection):
+    """The control polygon through `points` as a poly curve (cyclic when the curve is closed)."""
     data = bpy.data.curves.new(name, "CURVE")
     data.dimensions = "3D"
-    spline = data.splines.new(kind)
+    spline = data.splines.new("POLY")
     spline.points.add(len(points) - 1)
     for p, q in zip(spline.points, points):
         p.co = (*_xyz(q), 1.0)
-    if kind == "NURBS":
-        spline.order_u = DATA["degree"] + 1
-        spline.use_endpoint_u = True
-        spline.resolution_u = DATA["resolution"]
+    spline.use_cyclic_u = DATA["closed"]
+    obj = bpy.data.objects.new(name, data)
+    collection.objects.link(obj)
+    return obj
+
+
+def curve_object(name, points, corners, collection):
+    """The exact curve as a Bezier spline (free handles), one segment per knot span, cyclic when closed."""
+    pieces = [cubic(p) for p in bezier_pieces([_xyz(p) for p in points], DATA["degree"], DATA["closed"], corners)]
+    data = bpy.data.curves.new(name, "CURVE")
+    data.dimensions = "3D"
+    spline = data.splines.new("BEZIER")
+    knots = [p[0] for p in pieces] + ([] if DATA["closed"] else [pieces[-1][3]])
+    spline.bezier_points.add(len(knots) - 1)
+    m = len(pieces)
+    for j, (b, co) in enumerate(zip(spline.bezier_points, knots)):
+        b.handle_left_type = b.handle_right_type = "FREE"
+        b.co = co
+        b.handle_right = pieces[j][1] if j < m else co
+        b.handle_left = pieces[j - 1][2] if (j > 0 or DATA["closed"]) else co
+    spline.use_cyclic_u = DATA["closed"]
+    spline.resolution_u = DATA["resolution"]
     obj = bpy.data.objects.new(name, data)
     collection.objects.link(obj)
     return obj
@@ -65,32 +102,34 @@ def build():
     scene = bpy.context.scene
     history = bpy.data.collections.new(name + " history")
     scene.collection.children.link(history)
-    points = [tuple(p) for p in DATA["template"]]
+    points, corners = [tuple(p) for p in DATA["template"]], []
     steps = []
     for step in DATA["steps"]:
         op = step["op"]
         if op is not None:
-            OPS[op["op"]](points, **{k: v for k, v in op.items() if k != "op"})
-        steps.append(curve_object(step["label"], points, "POLY", history))
+            OPS[op["op"]](points, corners, **{k: v for k, v in op.items() if k != "op"})
+        steps.append(polygon_object(step["label"], points, history))
     for obj in steps[:-1]:
         obj.hide_set(True)
         obj.hide_render = True
-    curve = curve_object(name, points, "NURBS", scene.collection)
+    curve = curve_object(name, points, corners, scene.collection)
     bpy.context.view_layer.objects.active = curve
     curve.select_set(True)
     return curve, steps
 
 
 def describe(curve, steps):
-    """What Blender built, as JSON-ready data (control points, NURBS settings, evaluated points, history)."""
+    """What Blender built, as JSON-ready data (Bezier points and handles, settings, evaluated points, history)."""
     spline = curve.data.splines[0]
+    bezier = [[list(b.handle_left), list(b.co), list(b.handle_right)] for b in spline.bezier_points]
     evaluated = curve.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     samples = [list(v.co) for v in mesh.vertices]
     evaluated.to_mesh_clear()
-    return {"name": curve.name, "type": spline.type, "order": spline.order_u,
-            "endpoint": bool(spline.use_endpoint_u), "cyclic": bool(spline.use_cyclic_u),
-            "resolution": spline.resolution_u, "poles": [list(p.co) for p in spline.points],
+    return {"name": curve.name, "type": spline.type, "cyclic": bool(spline.use_cyclic_u),
+            "resolution": spline.resolution_u, "bezier": bezier,
+            "handle_types": sorted(set(t for b in spline.bezier_points for t in (b.handle_left_type,
+                                                                                 b.handle_right_type))),
             "samples": samples,
             "history": [{"name": o.name, "hidden": bool(o.hide_get()),
                          "points": [list(p.co) for p in o.data.splines[0].points]} for o in steps]}

@@ -4,10 +4,12 @@ Written by gsr_cad's "fcmacro" exporter; everything specific to this result is i
 
 Curves (DATA["kind"] == "curve") get a parametric history: the group "History" holds one FeaturePython
 object per step, the template, then one per op, each linked to the step before it ("Base"). An op's
-parameters are properties you can edit in FreeCAD ("Index", and "Position" or "Delta"); recomputing the
-document replays every later op and rebuilds "Curve", the exact clamped uniform B-spline of degree
-DATA["degree"] on the last step's points. Every step shows its control polygon (all hidden but the last)
-and keeps its points in "Points" and its op as JSON in "Op".
+parameters are properties you can edit in FreeCAD ("Index", and "Position" or "Delta"; a corner op has only
+"Index"); recomputing the document replays every later op and rebuilds "Curve", the exact B-spline of degree
+DATA["degree"] on the last step's points and corners: clamped with evenly spaced distinct knots when open,
+periodic when DATA["closed"], every corner a knot of multiplicity degree. Points may be (x, y) or (x, y, z)
+(DATA["dimension"]). Every step shows its control polygon (closed when the curve is; all hidden but the last)
+and keeps its points in "Points", its corners in "Corners" and its op as JSON in "Op".
 
 Surfaces get a parametric history too, on the connectivity gsr_cad found: one FeaturePython object per
 step (the template, then the control mesh after each op, shown as the compound of its face polygons; all
@@ -29,6 +31,7 @@ import sys
 
 import FreeCAD as App
 import Part
+from curve_knots import distinct, form_knots, periodic_form  # gsr:inline
 
 DATA = {}
 
@@ -43,28 +46,46 @@ def _pair(v):
 
 # --- curves: a parametric history ---------------------------------------------------------------------------
 
-def add_point(points, index, position):
-    """Insert a control point so that it becomes points[index] (1 <= index <= n - 1)."""
-    if not 1 <= index <= len(points) - 1:
-        raise ValueError("add_point index %d outside [1, %d]" % (index, len(points) - 1))
-    return points[:index] + [list(position)] + points[index:]
+def add_point(points, corners, index, position):
+    """Insert a control point so that it becomes points[index] (1 <= index <= n - 1, closed: <= n); later
+    corners keep their points."""
+    top = len(points) if DATA["closed"] else len(points) - 1
+    if not 1 <= index <= top:
+        raise ValueError("add_point index %d outside [1, %d]" % (index, top))
+    return points[:index] + [list(position)] + points[index:], [c + (c >= index) for c in corners]
 
 
-def move_point(points, index, delta):
-    """Translate the inner control point points[index] by delta (1 <= index <= n - 2)."""
-    if not 1 <= index <= len(points) - 2:
-        raise ValueError("move_point index %d outside [1, %d]" % (index, len(points) - 2))
+def move_point(points, corners, index, delta):
+    """Translate points[index] by delta (an open curve's end points stay: 1 <= index <= n - 2)."""
+    lo, hi = (0, len(points) - 1) if DATA["closed"] else (1, len(points) - 2)
+    if not lo <= index <= hi:
+        raise ValueError("move_point index %d outside [%d, %d]" % (index, lo, hi))
     moved = [c + d for c, d in zip(points[index], delta)]
-    return points[:index] + [moved] + points[index + 1:]
+    return points[:index] + [moved] + points[index + 1:], list(corners)
 
 
-OPS = {"add_point": (add_point, "Position"), "move_point": (move_point, "Delta")}
+def corner(points, corners, index, _=None):
+    """Make points[index] a C0 corner: an interior knot of multiplicity degree (the curve passes through it);
+    corners lie at least degree points apart and, on an open curve, degree points from the ends."""
+    n, k = len(points), DATA["degree"]
+    out = sorted(set(corners) | {index})
+    lo, hi = (0, n - 1) if DATA["closed"] else (k, n - 1 - k)
+    gaps = [b - a for a, b in zip(out, out[1:] + ([out[0] + n] if DATA["closed"] else []))]
+    if index in corners or not lo <= index <= hi or (gaps and min(gaps) < k):
+        raise ValueError("corner %d not allowed with corners %s on %d points" % (index, sorted(corners), n))
+    return list(points), out
 
 
-def clamped_knots(n, degree):
-    """Distinct knots and multiplicities of the clamped uniform knot vector of n poles on [0, 1]."""
-    spans = n - degree
-    return [i / spans for i in range(spans + 1)], [degree + 1] + [1] * (spans - 1) + [degree + 1]
+OPS = {"add_point": (add_point, "Position"), "move_point": (move_point, "Delta"), "corner": (corner, None)}
+
+
+def curve_form(poles, k, closed, corners):
+    """(poles, knots, multiplicities, periodic) of the curve as FreeCAD builds it: clamped when open, periodic on
+    one period [0, 1] when closed."""
+    if closed:
+        return periodic_form(poles, k, corners) + (True,)
+    knots, mults = distinct(form_knots(len(poles), k, False, corners))
+    return poles, knots, mults, False
 
 
 class Step:
@@ -72,15 +93,20 @@ class Step:
 
     def __init__(self, obj, op=None, points=None):
         obj.addProperty("App::PropertyVectorList", "Points", "gsr_cad", "the control polygon after this step")
+        obj.addProperty("App::PropertyIntegerList", "Corners", "gsr_cad", "the corner points after this step")
         obj.addProperty("App::PropertyString", "Op", "gsr_cad", "the modelling op of this step (JSON)")
+        obj.setEditorMode("Corners", 1)
         if op is not None:
+            field = OPS[op["op"]][1]
             obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the step this op applies to")
-            obj.addProperty("App::PropertyString", "Kind", "gsr_cad", "add_point or move_point")
-            obj.addProperty("App::PropertyInteger", "Index", "gsr_cad", "the control point the op adds or moves")
-            obj.addProperty("App::PropertyVector", OPS[op["op"]][1], "gsr_cad", "where to add, or how far to move")
+            obj.addProperty("App::PropertyString", "Kind", "gsr_cad", "add_point, move_point or corner")
+            obj.addProperty("App::PropertyInteger", "Index", "gsr_cad", "the control point the op adds, moves or "
+                                                                        "makes a corner")
             obj.Kind = op["op"]
             obj.Index = op["index"]
-            setattr(obj, OPS[op["op"]][1], _vector(op["position"] if op["op"] == "add_point" else op["delta"]))
+            if field:
+                obj.addProperty("App::PropertyVector", field, "gsr_cad", "where to add, or how far to move")
+                setattr(obj, field, _vector(op[field.lower()]))
         else:
             obj.Points = [_vector(p) for p in points]
         obj.Proxy = self
@@ -88,28 +114,37 @@ class Step:
     def execute(self, obj):
         if hasattr(obj, "Base"):
             fn, field = OPS[obj.Kind]
-            value = _pair(getattr(obj, field))
-            points = fn([_pair(v) for v in obj.Base.Points], obj.Index, value)
-            obj.Op = json.dumps({"op": obj.Kind, "index": obj.Index, field.lower(): value})
+            value = _pair(getattr(obj, field)) if field else None
+            points, corners = fn([_pair(v) for v in obj.Base.Points], list(obj.Base.Corners), obj.Index, value)
+            record = {"op": obj.Kind, "index": obj.Index}
+            if field:
+                record[field.lower()] = value
+            obj.Op = json.dumps(record)
             obj.Points = [_vector(p) for p in points]
-        obj.Shape = Part.makePolygon(list(obj.Points))
+            obj.Corners = corners
+        pts = list(obj.Points)
+        obj.Shape = Part.makePolygon(pts + pts[:1] if DATA["closed"] else pts)
 
 
 class Curve:
-    """The clamped uniform B-spline on the points of its Base step."""
+    """The exact B-spline on the points and corners of its Base step: clamped when open, periodic when closed,
+    corners as knots of multiplicity Degree."""
 
     def __init__(self, obj, base):
         obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the last step of the history")
         obj.addProperty("App::PropertyInteger", "Degree", "gsr_cad", "the B-spline degree (3 bspline, 2 chaikin)")
+        obj.addProperty("App::PropertyBool", "Closed", "gsr_cad", "a closed (periodic) curve")
         obj.Base = base
         obj.Degree = DATA["degree"]
+        obj.Closed = DATA["closed"]
+        obj.setEditorMode("Closed", 1)
         obj.Proxy = self
 
     def execute(self, obj):
-        poles = list(obj.Base.Points)
-        knots, mults = clamped_knots(len(poles), obj.Degree)
+        poles, knots, mults, periodic = curve_form(list(obj.Base.Points), obj.Degree, obj.Closed,
+                                                   list(obj.Base.Corners))
         spline = Part.BSplineCurve()
-        spline.buildFromPolesMultsKnots(poles, mults, knots, False, obj.Degree)
+        spline.buildFromPolesMultsKnots(poles, mults, knots, periodic, obj.Degree)
         obj.Shape = spline.toShape()
 
 

@@ -22,6 +22,7 @@ def dump_curve(edge, params):
     return {"degree": c.Degree, "rational": bool(c.isRational()),
             "poles": [[p.x, p.y, p.z] for p in c.getPoles()], "knots": c.getKnots(),
             "mults": c.getMultiplicities(), "range": list(edge.ParameterRange), "periodic": bool(c.isPeriodic()),
+            "closed": bool(c.isClosed()),
             "samples": [[p.x, p.y, p.z] for p in (c.value(u) for u in params)]}
 
 
@@ -45,6 +46,7 @@ def dump_document(doc):
         shape = getattr(o, "Shape", None)
         steps.append({"label": o.Label, "type": o.TypeId, "visible": bool(o.Visibility),
                       "op": getattr(o, "Op", None),
+                      "corners": list(getattr(o, "Corners", [])),
                       "nodes": [[v.x, v.y, v.z] for v in getattr(o, "Points", getattr(o, "Nodes", []))],
                       "wires": [[[v.X, v.Y, v.Z] for v in w.OrderedVertexes] for w in shape.Wires] if shape else []})
     data = {"steps": steps, "curve": None, "surface": None, "mesh": None}

@@ -216,7 +216,7 @@ class AddPoint(Op):
 
     name: ClassVar[str] = "add_point"
     index: int
-    position: tuple[float, float]
+    position: tuple[float, ...]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "index", _index(self.index, "add_point index"))
@@ -237,7 +237,7 @@ class MovePoint(Op):
 
     name: ClassVar[str] = "move_point"
     index: int
-    delta: tuple[float, float]
+    delta: tuple[float, ...]
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "index", _index(self.index, "move_point index"))
