@@ -1,4 +1,5 @@
-"""Figures of reconstruction results (``report.png``), laid out like the paper's Figures 3, 5 and 6.
+"""Figures of reconstruction results (``report.png``), laid out like the paper's Figures 3, 5 and 6 (planar
+and space curves, surfaces).
 
 Lengths are drawn in the result's model units (``config["units"]``), with percent of the target's
 bounding-box diagonal on a second axis, as in the summary and ``report.html``. matplotlib is imported
@@ -240,7 +241,8 @@ def curve_report(result: Result, target_points: np.ndarray, path: str | os.PathL
 
 def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | None = None, *,
                  title: str | None = None) -> Figure:
-    """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas.
+    """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas; a space curve's
+    geometry rows (1, 2 and 4) are 3D views at equal scale on x, y and z.
 
     Rows: (1) result curve over the target points, coloured by the target's distance to it
     (:func:`deviation_along_curve`) in model units (red near, blue far, as in the paper), the worst point
@@ -365,10 +367,9 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     return fig
 
 
-def _frame_space(ax, points: np.ndarray, unit: str | None = None, view: tuple[str, float, float] | None = None) -> None:
-    """A 3D panel around ``points`` at equal scale on x, y and z (the box's sides in the data's proportions; a
-    flat side keeps a sliver), seen from ``view`` (the oblique one by default); axes labelled in ``unit``, or
-    none."""
+def _frame_space(ax, points: np.ndarray, unit: str | None = None) -> None:
+    """A 3D panel around ``points`` at equal scale on x, y and z (the box's sides in the data's proportions,
+    padded, so a flat curve keeps a sliver), seen from the oblique view; axes labelled in ``unit``, or none."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     pad = 0.04 * max(float((hi - lo).max()), 1e-300)
     lo, hi = lo - pad, hi + pad
@@ -376,8 +377,7 @@ def _frame_space(ax, points: np.ndarray, unit: str | None = None, view: tuple[st
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
     ax.set_box_aspect(tuple(hi - lo), zoom=0.95)
-    view = view or VIEWS[0]
-    ax.view_init(elev=view[1], azim=view[2])
+    ax.view_init(elev=VIEWS[0][1], azim=VIEWS[0][2])
     if unit is None:
         ax.set_axis_off()
         return
