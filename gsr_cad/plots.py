@@ -242,7 +242,8 @@ def curve_report(result: Result, target_points: np.ndarray, path: str | os.PathL
 def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | None = None, *,
                  title: str | None = None) -> Figure:
     """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas; a space curve's
-    geometry rows (1, 2 and 4) are 3D views at equal scale on x, y and z.
+    geometry rows (1, 2 and 4) are 3D views at equal scale on x, y and z, with its three orthographic
+    projections (top, front, side) after row 2.
 
     Rows: (1) result curve over the target points, coloured by the target's distance to it
     (:func:`deviation_along_curve`) in model units (red near, blue far, as in the paper), the worst point
@@ -292,7 +293,8 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     shape_h = plot_w * 0.9 * aspect
     strip_w = (plot_w + 0.6) / max(len(steps), 1)
     head = 0.35 + 0.2 * (subtitle.count("\n") + 2)
-    rows = [(shape_h, 0.35), (shape_h, 0.35), (1.6, 0.6), (strip_w * aspect if steps else 0.0, 0.2),
+    proj_h = (plot_w - 2 * PROJECTION_GAP) / 3 / 0.86 if space else 0.0
+    rows = [(shape_h, 0.35), (shape_h, 0.35), (proj_h, 0.55), (1.6, 0.6), (strip_w * aspect if steps else 0.0, 0.2),
             (1.5, 0.55), (1.9, 0.55)]  # (axes height, space below)
     height = head + sum(0.3 + h + below for h, below in rows if h)
     fig = Figure(figsize=(width, height))
@@ -306,7 +308,7 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
         axes.append(fig.add_axes((left / width, (top - h) / height, plot_w / width, h / height),
                                  projection="3d" if space and row < 2 else None))
         top -= h + below
-    ax_curve, ax_poly, ax_dev, ax_strip, ax_genome, ax_conv = axes
+    ax_curve, ax_poly, ax_proj, ax_dev, ax_strip, ax_genome, ax_conv = axes
     cax = fig.add_axes(((left + plot_w + bar_gap) / width, ax_curve.get_position().y0, bar_w / width,
                         shape_h / height))
     fig.suptitle(f"{name}  ({result.config.get('scheme', 'bspline')}, degree {degree})\n{subtitle}",
@@ -358,6 +360,8 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
         ax.margins(0.04)
 
     # (3) deviation along the curve, (4) op history, (5) genome, (6) convergence
+    if ax_proj is not None:
+        _draw_projections(fig, ax_proj, segments, lc, ctrl, target, unit)
     _draw_deviation(ax_dev, result, ctrl, target, curve, dist, per_target, diag, unit)
     if ax_strip is not None:
         _draw_curve_strip(fig, ax_strip, states, genome, steps, target, degree)
@@ -384,6 +388,42 @@ def _frame_space(ax, points: np.ndarray, unit: str | None = None) -> None:
     for name, axis in zip("xyz", (ax.xaxis, ax.yaxis, ax.zaxis)):
         axis.set_label_text(f"{name}, {unit}", fontsize=8)
     ax.tick_params(labelsize=7)
+
+
+PROJECTIONS = (("top", 0, 1), ("front", 0, 2), ("side", 1, 2))
+"""The orthographic projections of a space curve's report: (name, horizontal axis, vertical axis)."""
+PROJECTION_GAP = 0.55  # inches between two projection panels
+
+
+def _draw_projections(fig, ax, segments: np.ndarray, coloured, ctrl: np.ndarray, target: np.ndarray,
+                      unit: str) -> None:
+    """A space curve in three orthographic views at equal scale, side by side: the target points, the
+    curve coloured as ``coloured`` (its values, colour map and limits) and the control polygon."""
+    from matplotlib.collections import LineCollection
+
+    box = ax.get_position()
+    ax.set_axis_off()
+    ax.set_title("orthographic projections: the curve (coloured by distance) and its control polygon", loc="left",
+                 fontsize=10)
+    gap = PROJECTION_GAP / fig.get_figwidth()
+    w = (box.width - 2 * gap) / 3
+    everything = np.vstack([target, ctrl])
+    for i, (name, a, b) in enumerate(PROJECTIONS):
+        sub = fig.add_axes((box.x0 + i * (w + gap), box.y0, w, 0.86 * box.height))  # room for its title
+        sub.plot(target[:, a], target[:, b], ".", color="0.75", markersize=2, zorder=1)
+        lc = LineCollection(segments[:, :, [a, b]], cmap=coloured.get_cmap(), linewidths=1.6, zorder=3)
+        lc.set_array(coloured.get_array())
+        lc.set_clim(*coloured.get_clim())
+        sub.add_collection(lc)
+        sub.plot(ctrl[:, a], ctrl[:, b], "o-", color=MOVE_COLOUR, markersize=2.5, linewidth=0.8, zorder=2)
+        sub.update_datalim(everything[:, [a, b]])
+        sub.autoscale_view()
+        sub.set_aspect("equal", adjustable="datalim")
+        sub.margins(0.05)
+        sub.set_xlabel(f"{'xyz'[a]}, {unit}", fontsize=8)
+        sub.set_ylabel(f"{'xyz'[b]}, {unit}", fontsize=8, labelpad=1)
+        sub.tick_params(labelsize=7)
+        sub.set_title(f"{name} ({'xyz'[a]}, {'xyz'[b]})", fontsize=9)
 
 
 def _curve_template(result: Result, target: np.ndarray) -> Any:

@@ -387,3 +387,27 @@ def test_a_space_curve_report_png_is_written_and_bad_dimensions_are_refused(heli
     with pytest.raises(InputError, match="ground-truth"):
         curve_report(result, pts, tmp_path / "bad.png", truth=np.zeros((4, 2)))
     assert not (tmp_path / "bad.png").exists()
+
+
+def test_a_space_curve_report_has_its_three_orthographic_projections(helix_run):
+    from gsr_cad.plots import PROJECTIONS
+
+    pts, result = helix_run
+    fig = curve_figure(result, pts)
+    coloured = line_collection(axis(fig, "result curve"))
+    segs3d = np.asarray(coloured._segments3d)
+    views = {a.get_title(): a for a in fig.axes if a.get_title().startswith(("top", "front", "side"))}
+    assert sorted(views) == ["front (x, z)", "side (y, z)", "top (x, y)"]
+    for name, a, b in PROJECTIONS:
+        ax = views[f"{name} ({'xyz'[a]}, {'xyz'[b]})"]
+        lc = line_collection(ax)
+        np.testing.assert_array_equal(np.asarray(lc.get_segments()), segs3d[:, :, [a, b]])
+        np.testing.assert_array_equal(lc.get_array(), coloured.get_array())
+        assert lc.get_clim() == coloured.get_clim()
+        (polygon,) = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        np.testing.assert_array_equal(polygon.get_xydata(), result.control_points[:, [a, b]])
+        assert ax.get_aspect() == 1.0 and ax.get_xlabel() == f"{'xyz'[a]}, mm"
+    planar = get_sample("bspline_05")  # a planar report has no projection row
+    genome, ctrl = genome_onto(planar.points, planar.truth_ctrl)
+    assert not [a for a in curve_figure(make_result(ctrl, genome, history(2)), planar.points).axes
+                if a.get_title().startswith("top (")]
