@@ -16,8 +16,9 @@ from the origin relative to the curve's size lose precision in its STL/DXF/SVG o
 
 Validation renders ``part="curve"`` and ``part="control_polygon"`` extruded to STL with ``openscad`` and
 checks that the solids are non-empty, that every vertex lies within half the stroke width of our exact
-curve (or control polygon), and that our curve (control points) lies inside the rendered footprint; for
-surfaces, the limit mesh and the cage solid.
+curve (or control polygon), that our curve (control points) lies inside the rendered footprint and, for a
+closed curve, that the stroke is joined at its seam (no notch there); for surfaces, the limit mesh and the
+cage solid.
 """
 
 from __future__ import annotations
@@ -82,6 +83,17 @@ def distinct(points: np.ndarray) -> np.ndarray:
     if len(p) < 2:
         raise ExportError("the curve has no length: nothing to stroke")
     return p
+
+
+def seam_joins(spline: CurveSpline, width: float) -> np.ndarray:
+    """The centroids of the two bevel triangles that join a closed stroke at its seam (the ``gsr_closed`` join
+    of curve.scad), on the samples the file carries: a stroke joined there covers both, one left open has a
+    notch on the outer side of the seam's turn."""
+    p = distinct(stroke_samples(spline, width))
+    ends = np.array([p[-1] - p[-2], p[1] - p[0]])
+    normals = np.c_[-ends[:, 1], ends[:, 0]] / np.linalg.norm(ends, axis=1)[:, None]
+    offset = (width / 2) * normals.sum(axis=0) / 3
+    return np.array([p[0] + offset, p[0] - offset])
 
 
 def footprint_distance(points: np.ndarray, tri: np.ndarray, chunk: int = 256) -> np.ndarray:
@@ -152,11 +164,15 @@ class OpenscadExporter(Exporter):
                     checks.append(failed(path, self.host, f"render {part}", str(exc)))
                     continue
                 checks += self._compare(path, part, ours, half, sag, np.asarray(mesh.vertices, dtype=float),
-                                        np.asarray(mesh.faces, dtype=np.int64), inner, spline)
+                                        np.asarray(mesh.faces, dtype=np.int64), inner, spline,
+                                        seam_joins(spline, width) if part == "curve" and spline.closed else None)
         return checks
 
     def _compare(self, path: Path, part: str, ours: str, half: float, sag: float, vertices: np.ndarray,
-                 triangles: np.ndarray, inner: np.ndarray, spline: CurveSpline) -> list[Check]:
+                 triangles: np.ndarray, inner: np.ndarray, spline: CurveSpline,
+                 seam: np.ndarray | None = None) -> list[Check]:
+        """The rendered solid against our curve or polygon; with ``seam`` (:func:`seam_joins`), also that the
+        closed stroke is joined at its seam (both join points inside the footprint)."""
         if len(triangles) == 0:
             return [failed(path, self.host, f"{part} solid", "OpenSCAD rendered nothing")]
         rounding = _DIGITS_TOL * float(np.abs(spline.poles).max()) + _GRID / drawing_unit(spline)
@@ -164,14 +180,21 @@ class OpenscadExporter(Exporter):
         dist = distance.point_to_polyline(xy, spline.dense(256) if part == "curve" else spline.poles)
         z = vertices[:, 2]
         bottom = triangles[np.all(np.abs(z[triangles]) <= rounding, axis=1)]
-        outside = footprint_distance(inner, xy[bottom]) if len(bottom) else np.full(len(inner), np.inf)
-        return [
+
+        def outside(points: np.ndarray) -> float:
+            return float(footprint_distance(points, xy[bottom]).max()) if len(bottom) else math.inf
+
+        checks = [
             measured(path, self.host, f"{part}: extrusion height", float(abs(np.ptp(z) - _HEIGHT)), rounding),
             measured(path, self.host, f"{part}: vertices within half width of our {ours}", float(dist.max()),
                      half + sag + rounding, f"half width {half:.3g} + chord sag {sag:.2g}"),
-            measured(path, self.host, f"{part}: our {ours} inside the footprint", float(outside.max()), rounding,
+            measured(path, self.host, f"{part}: our {ours} inside the footprint", outside(inner), rounding,
                      f"{len(inner)} points; deviation = farthest outside"),
         ]
+        if seam is not None:
+            checks.append(measured(path, self.host, f"{part}: joined at the seam", outside(seam), rounding,
+                                   "the seam's bevel join inside the footprint; deviation = farthest outside"))
+        return checks
 
     def render_surface(self, result: Any, stem: str) -> dict[str, str]:
         return {self.filename(stem): surface_scad(surface_model(result))}

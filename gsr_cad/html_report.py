@@ -2,8 +2,8 @@
 offline (no CDN). Lengths are in the result's model units (``config["units"]``) with percent of the target's
 bounding-box diagonal beside them, as in the summary and ``report.png``.
 
-Curves: the result curve over the target coloured by its deviation, the control polygon (and the ground
-truth), the deviation along the curve with the tolerance and the worst point, the op history (a slider over
+Curves (planar, or in space as 3D scenes): the result curve over the target coloured by its deviation, the
+control polygon (and the ground truth), the deviation along the curve with the tolerance and the worst point, the op history (a slider over
 the polygon after each op), the genome and the convergence. Surfaces: target and result side by side (linked
 cameras), the result coloured by its distance to the target, the op history (a slider over the control mesh
 and its limit surface after each op) and the convergence.
@@ -99,6 +99,30 @@ def _title(result: Result, title: str | None, default: str) -> str:
 
 # --- curves --------------------------------------------------------------------------------------------------
 
+def _line(go: Any, pts: np.ndarray, **kwargs: Any) -> Any:
+    """A Scatter of x, y rows or a Scatter3d of x, y, z rows (a 3D marker is half the size of a 2D one)."""
+    if pts.shape[1] == 2:
+        return go.Scatter(x=pts[:, 0], y=pts[:, 1], **kwargs)
+    marker = kwargs.get("marker")
+    if isinstance(marker, dict) and "size" in marker:
+        kwargs["marker"] = {**marker, "size": max(2, marker["size"] // 2)}
+    return go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], **kwargs)
+
+
+def _scene(unit: str) -> dict[str, Any]:
+    """A 3D scene at equal scale (the data's proportions), its axes titled in ``unit``."""
+    return {"aspectmode": "data", "xaxis_title": f"x ({unit})", "yaxis_title": f"y ({unit})",
+            "zaxis_title": f"z ({unit})"}
+
+
+def _equal_axes(fig: Any, dim: int, unit: str) -> None:
+    """Equal scale on every axis: y anchored to x in 2D, the scene in the data's proportions in 3D."""
+    if dim == 2:
+        fig.update_layout(yaxis={"scaleanchor": "x", "scaleratio": 1})
+    else:
+        fig.update_layout(scene=_scene(unit))
+
+
 def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLike[str],
                truth: np.ndarray | None = None, *, title: str | None = None) -> Path:
     """Write the interactive curve report to ``path`` atomically and return it."""
@@ -108,30 +132,30 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
     if result.kind != "curve" or result.control_points is None:
         raise InputError("a curve report needs a curve result with control points")
     target = _points(target_points, "target points")
-    ctrl = _points(result.control_points, "result control points")
-    truth_pts = None if truth is None else _points(truth, "ground-truth control points")
+    dim = target.shape[1]
+    ctrl = _points(result.control_points, "result control points", dim)
+    truth_pts = None if truth is None else _points(truth, "ground-truth control points", dim)
     diag, unit = diagonal(result), unit_label(units(result))
     closed, corners = curve_form(result)
     curve, dev, per_target = deviation_along_curve(ctrl, target, result.degree, closed=closed, corners=corners)
     worst = int(np.argmax(per_target))
 
     shape = go.Figure()
-    shape.add_trace(go.Scatter(x=target[:, 0], y=target[:, 1], mode="markers", name="target",
-                               marker={"color": "black", "size": 4}))
-    shape.add_trace(go.Scatter(
-        x=curve[:, 0], y=curve[:, 1], mode="markers+lines", name="result", line={"color": "#bbbbbb", "width": 1},
+    shape.add_trace(_line(go, target, mode="markers", name="target", marker={"color": "black", "size": 4}))
+    shape.add_trace(_line(
+        go, curve, mode="markers+lines", name="result", line={"color": "#bbbbbb", "width": 1},
         customdata=100 * dev / diag, marker={"color": dev, "colorscale": COLOURSCALE, "size": 5, "cmin": 0,
                                             "colorbar": {"title": f"deviation, {unit}", "tickformat": ".3g"}},
         hovertemplate=f"deviation %{{marker.color:.4g}} {unit} (%{{customdata:.3g}} % of the diagonal)"))
-    shape.add_trace(go.Scatter(x=ctrl[:, 0], y=ctrl[:, 1], mode="lines+markers", name="control polygon",
-                               line={"color": "#d62728", "dash": "dot"}, marker={"size": 7}))
+    shape.add_trace(_line(go, ctrl, mode="lines+markers", name="control polygon",
+                          line={"color": "#d62728", "dash": "dot"}, marker={"size": 7}))
     if truth_pts is not None:
-        shape.add_trace(go.Scatter(x=truth_pts[:, 0], y=truth_pts[:, 1], mode="lines+markers", name="ground truth",
-                                   line={"color": "black", "dash": "dash"}, marker={"symbol": "square"}))
-    shape.add_trace(go.Scatter(x=[target[worst, 0]], y=[target[worst, 1]], mode="markers", name="worst point",
-                               marker={"symbol": "x", "size": 12, "color": "#d62728"}))
-    shape.update_layout(height=520, margin={"t": 30}, yaxis={"scaleanchor": "x", "scaleratio": 1},
-                        legend={"orientation": "h"})
+        shape.add_trace(_line(go, truth_pts, mode="lines+markers", name="ground truth",
+                              line={"color": "black", "dash": "dash"}, marker={"symbol": "square", "size": 6}))
+    shape.add_trace(_line(go, target[[worst]], mode="markers", name="worst point",
+                          marker={"symbol": "x", "size": 12, "color": "#d62728"}))
+    shape.update_layout(height=520 if dim == 2 else 640, margin={"t": 30}, legend={"orientation": "h"})
+    _equal_axes(shape, dim, unit)
 
     along = np.linspace(0.0, 100.0, len(dev))
     params = (100.0 * target_feet(ctrl, target, result.degree, curve, closed, corners)[0]
@@ -162,7 +186,7 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
     states = hist.replayed(hist.curve_template(result, target), tuple(result.genome))
     if states is not None:
         sections.append(("op history (slider: the control polygon after each op)",
-                         _div(_curve_history(go, states, result.genome, target), "history")))
+                         _div(_curve_history(go, states, result.genome, target, unit), "history")))
         sizes = hist.curve_op_sizes(states, tuple(result.genome))
         names = [op.name for op in result.genome]
         bars = go.Figure(go.Bar(x=list(range(1, len(sizes) + 1)), y=sizes, name="genome",
@@ -176,22 +200,21 @@ def curve_html(result: Result, target_points: np.ndarray, path: str | os.PathLik
     return _write(path, _page(f"{name}: curve report", summary_lines(result), sections))
 
 
-def _curve_history(go: Any, states: list, genome: Sequence[Any], target: np.ndarray) -> Any:
+def _curve_history(go: Any, states: list, genome: Sequence[Any], target: np.ndarray, unit: str) -> Any:
     steps = hist.step_indices(len(genome), len(genome) + 1 if len(genome) < 60 else 60)
     fig = go.Figure()
-    fig.add_trace(go.Scatter(x=target[:, 0], y=target[:, 1], mode="markers", name="target",
-                             marker={"color": "#cccccc", "size": 3}))
+    fig.add_trace(_line(go, target, mode="markers", name="target", marker={"color": "#cccccc", "size": 3}))
     for i, k in enumerate(steps):
-        pts = states[k].points
-        fig.add_trace(go.Scatter(x=pts[:, 0], y=pts[:, 1], mode="lines+markers", name=f"after {k} ops",
-                                 visible=i == len(steps) - 1, line={"color": "#d62728"}))
+        fig.add_trace(_line(go, np.asarray(states[k].points), mode="lines+markers", name=f"after {k} ops",
+                            visible=i == len(steps) - 1, line={"color": "#d62728"}, marker={"size": 6}))
     slider = [{"label": str(k), "method": "update",
                "args": [{"visible": [True] + [j == i for j in range(len(steps))]},
                         {"title": f"after {k} ops" + (f": {hist.op_label(genome[k - 1])}" if k else " (template)")}]}
               for i, k in enumerate(steps)]
-    fig.update_layout(height=460, margin={"t": 40}, yaxis={"scaleanchor": "x", "scaleratio": 1},
+    fig.update_layout(height=460 if target.shape[1] == 2 else 600, margin={"t": 40},
                       sliders=[{"active": len(steps) - 1, "steps": slider, "currentvalue": {"prefix": "ops: "}}],
                       title=f"after {steps[-1]} ops (the result)")
+    _equal_axes(fig, target.shape[1], unit)
     return fig
 
 
@@ -249,9 +272,8 @@ def surface_html(result: Result, path: str | os.PathLike[str], target: Any = Non
     side.add_trace(_mesh3d(go, limit.vertices, tris, "result", **(colour if target is not None else
                                                                    {"color": "#bdbdbd"})), row=1, col=2)
     side.add_trace(_wire(go, result.control_mesh, "control mesh"), row=1, col=2)
-    scene = {"aspectmode": "data", "xaxis_title": f"x ({unit})", "yaxis_title": f"y ({unit})",
-             "zaxis_title": f"z ({unit})"}
-    side.update_layout(height=560, margin={"t": 40}, scene=scene, scene2=scene, legend={"orientation": "h"})
+    side.update_layout(height=560, margin={"t": 40}, scene=_scene(unit), scene2=_scene(unit),
+                       legend={"orientation": "h"})
     sections = [("target beside the result (drag to turn; the two views turn together)", _div(side, "surfaces"))]
     states = hist.replayed(hist.surface_template(result), tuple(result.genome))
     if states is not None:
@@ -279,8 +301,7 @@ def _surface_history(go: Any, states: list, genome: Sequence[Any], levels: int, 
                         {"title": f"after {k} ops" + (f": {hist.op_text(genome[k - 1])}" if k else " (template)")}]}
               for i, k in enumerate(steps)]
     fig.update_layout(height=520, margin={"t": 40}, title=f"after {steps[-1]} ops (the result)",
-                      scene={"aspectmode": "data", "xaxis_title": f"x ({unit})", "yaxis_title": f"y ({unit})",
-                             "zaxis_title": f"z ({unit})"},
+                      scene=_scene(unit),
                       sliders=[{"active": len(steps) - 1, "steps": slider, "currentvalue": {"prefix": "ops: "}}])
     return fig
 

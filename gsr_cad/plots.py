@@ -1,4 +1,5 @@
-"""Figures of reconstruction results (``report.png``), laid out like the paper's Figures 3, 5 and 6.
+"""Figures of reconstruction results (``report.png``), laid out like the paper's Figures 3, 5 and 6 (planar
+and space curves, surfaces).
 
 Lengths are drawn in the result's model units (``config["units"]``), with percent of the target's
 bounding-box diagonal on a second axis, as in the summary and ``report.html``. matplotlib is imported
@@ -35,6 +36,7 @@ MOVE_COLOUR = "#d62728"  # the paper's red bars: vertex movement, height = dista
 OTHER_COLOUR = "#8c8c8c"
 CURVE_SAMPLES = 1200     # points of the result curve drawn and measured
 STRIP_STEPS = 8          # panels of the op-history strip
+SPACE_ASPECT = 0.75      # height / width of a 3D curve panel
 TOLERANCE_COLOUR = "#2ca02c"
 
 
@@ -44,10 +46,14 @@ def _plain(text: str) -> str:
     which the axes' own labels need, never parses user text."""
     return str(text).replace("$", r"\$")
 
-def _points(a: Any, what: str) -> np.ndarray:
+def _points(a: Any, what: str, dim: int | None = None) -> np.ndarray:
+    """``a`` as at least 2 finite rows of x, y or x, y, z (of ``dim`` columns when given), else InputError."""
     pts = np.asarray(a, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
-        raise InputError(f"{what} must be at least 2 finite x, y rows, got an array of shape {pts.shape}")
+    dims = (2, 3) if dim is None else (dim,)
+    if pts.ndim != 2 or pts.shape[1] not in dims or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        rows = " or ".join({2: "x, y", 3: "x, y, z"}[d] for d in dims)
+        like = " (the target points' dimension)" if dim is not None else ""
+        raise InputError(f"{what} must be at least 2 finite {rows} rows{like}, got an array of shape {pts.shape}")
     return pts
 
 
@@ -235,7 +241,9 @@ def curve_report(result: Result, target_points: np.ndarray, path: str | os.PathL
 
 def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | None = None, *,
                  title: str | None = None) -> Figure:
-    """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas.
+    """The paper's Figure 3 for one curve result, as a matplotlib Figure on an Agg canvas; a space curve's
+    geometry rows (1, 2 and 4) are 3D views at equal scale on x, y and z, with its three orthographic
+    projections (top, front, side) after row 2.
 
     Rows: (1) result curve over the target points, coloured by the target's distance to it
     (:func:`deviation_along_curve`) in model units (red near, blue far, as in the paper), the worst point
@@ -248,12 +256,14 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     if result.kind != "curve" or result.control_points is None:
         raise InputError("a curve report needs a curve result with control points")
     target = _points(target_points, "target points")
-    ctrl = _points(result.control_points, "result control points")
-    truth_pts = None if truth is None else _points(truth, "ground-truth control points")
+    space = target.shape[1] == 3
+    ctrl = _points(result.control_points, "result control points", target.shape[1])
+    truth_pts = None if truth is None else _points(truth, "ground-truth control points", target.shape[1])
     degree = result.degree
     closed, corners = curve_form(result)
     diag = float(np.linalg.norm(np.ptp(target, axis=0))) or 1.0
@@ -273,27 +283,32 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     # is fixed in inches (a constraint solver would cost more than the drawing).
     everything = np.vstack([target, ctrl] + ([truth_pts] if truth_pts is not None else []))
     span = np.ptp(everything, axis=0)
-    aspect = float(np.clip(span[1] / span[0], 0.3, 1.0)) if span[0] > 0 else 1.0
+    if space:  # a 3D view: a box a little wider than high, whatever the data
+        aspect = SPACE_ASPECT
+    else:
+        aspect = float(np.clip(span[1] / span[0], 0.3, 1.0)) if span[0] > 0 else 1.0
     subtitle = _subtitle(result)
     left, plot_w, bar_gap, bar_w = 0.85, 6.25, 0.12, 0.16
     width = 8.0
     shape_h = plot_w * 0.9 * aspect
     strip_w = (plot_w + 0.6) / max(len(steps), 1)
     head = 0.35 + 0.2 * (subtitle.count("\n") + 2)
-    rows = [(shape_h, 0.35), (shape_h, 0.35), (1.6, 0.6), (strip_w * aspect if steps else 0.0, 0.2),
+    proj_h = (plot_w - 2 * PROJECTION_GAP) / 3 / 0.86 if space else 0.0
+    rows = [(shape_h, 0.35), (shape_h, 0.35), (proj_h, 0.55), (1.6, 0.6), (strip_w * aspect if steps else 0.0, 0.2),
             (1.5, 0.55), (1.9, 0.55)]  # (axes height, space below)
     height = head + sum(0.3 + h + below for h, below in rows if h)
     fig = Figure(figsize=(width, height))
     FigureCanvasAgg(fig)
     axes, top = [], height - head
-    for h, below in rows:
+    for row, (h, below) in enumerate(rows):
         if not h:
             axes.append(None)
             continue
         top -= 0.3  # room for the row's title
-        axes.append(fig.add_axes((left / width, (top - h) / height, plot_w / width, h / height)))
+        axes.append(fig.add_axes((left / width, (top - h) / height, plot_w / width, h / height),
+                                 projection="3d" if space and row < 2 else None))
         top -= h + below
-    ax_curve, ax_poly, ax_dev, ax_strip, ax_genome, ax_conv = axes
+    ax_curve, ax_poly, ax_proj, ax_dev, ax_strip, ax_genome, ax_conv = axes
     cax = fig.add_axes(((left + plot_w + bar_gap) / width, ax_curve.get_position().y0, bar_w / width,
                         shape_h / height))
     fig.suptitle(f"{name}  ({result.config.get('scheme', 'bspline')}, degree {degree})\n{subtitle}",
@@ -302,14 +317,18 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     # (1) curve over targets, coloured by distance (as in the paper: red = near, blue = far)
     seg_d = 0.5 * (dist[1:] + dist[:-1])
     vmax = max(float(per_target.max()), float(seg_d.max()), 1e-12 * diag)  # bar top = max distance
-    lc = LineCollection(np.stack([curve[:-1], curve[1:]], axis=1), cmap="turbo_r", linewidths=2.0, zorder=3)
+    segments = np.stack([curve[:-1], curve[1:]], axis=1)
+    lc = (Line3DCollection if space else LineCollection)(segments, cmap="turbo_r", linewidths=2.0, zorder=3)
     lc.set_array(seg_d)
     lc.set_clim(0.0, vmax)
-    ax_curve.scatter(*target.T, s=14 if len(target) < 400 else 5, color="black", linewidths=0, zorder=2,
-                     label=f"target ({len(target)} points)")
-    ax_curve.add_collection(lc)
-    ax_curve.scatter(*target[worst], s=90, marker="x", color=MOVE_COLOUR, linewidths=2, zorder=5,
-                     label=f"worst point: {_fmt(per_target[worst])} {unit}")
+    flat = {"depthshade": False} if space else {}
+    if space:  # draw in the order given (the curve over the points), as in 2D
+        ax_curve.computed_zorder = ax_poly.computed_zorder = False
+    ax_curve.scatter(*target.T, s=(14 if len(target) < 400 else 5) / (3 if space else 1), color="black", linewidths=0, zorder=2,
+                     label=f"target ({len(target)} points)", **flat)
+    ax_curve.add_collection3d(lc) if space else ax_curve.add_collection(lc)
+    ax_curve.scatter(*target[[worst]].T, s=90, marker="x", color=MOVE_COLOUR, linewidths=2, zorder=5,
+                     label=f"worst point: {_fmt(per_target[worst])} {unit}", **flat)
     ax_curve.set_title("result curve over the target points, coloured by the target's distance to it",
                        loc="left", fontsize=10)
     ax_curve.legend(loc="best", fontsize=8, markerscale=1)
@@ -331,6 +350,9 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     ax_poly.set_title(poly_title, loc="left", fontsize=10)
     ax_poly.legend(loc="best", fontsize=8)
     for ax in (ax_curve, ax_poly):
+        if space:
+            _frame_space(ax, everything, unit)
+            continue
         ax.update_datalim(everything)
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
@@ -338,6 +360,8 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
         ax.margins(0.04)
 
     # (3) deviation along the curve, (4) op history, (5) genome, (6) convergence
+    if ax_proj is not None:
+        _draw_projections(fig, ax_proj, segments, lc, ctrl, target, unit)
     _draw_deviation(ax_dev, result, ctrl, target, curve, dist, per_target, diag, unit)
     if ax_strip is not None:
         _draw_curve_strip(fig, ax_strip, states, genome, steps, target, degree)
@@ -345,6 +369,61 @@ def curve_figure(result: Result, target_points: np.ndarray, truth: np.ndarray | 
     _draw_genome(ax_genome, genome, sizes, unit)
     _draw_convergence(ax_conv, result.history, result.interrupted, result.metrics or {})
     return fig
+
+
+def _frame_space(ax, points: np.ndarray, unit: str | None = None) -> None:
+    """A 3D panel around ``points`` at equal scale on x, y and z (the box's sides in the data's proportions,
+    padded, so a flat curve keeps a sliver), seen from the oblique view; axes labelled in ``unit``, or none."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    pad = 0.04 * max(float((hi - lo).max()), 1e-300)
+    lo, hi = lo - pad, hi + pad
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(tuple(hi - lo), zoom=0.95)
+    ax.view_init(elev=VIEWS[0][1], azim=VIEWS[0][2])
+    if unit is None:
+        ax.set_axis_off()
+        return
+    for name, axis in zip("xyz", (ax.xaxis, ax.yaxis, ax.zaxis)):
+        axis.set_label_text(f"{name}, {unit}", fontsize=8)
+    ax.tick_params(labelsize=7)
+
+
+PROJECTIONS = (("top", 0, 1), ("front", 0, 2), ("side", 1, 2))
+"""The orthographic projections of a space curve's report: (name, horizontal axis, vertical axis)."""
+PROJECTION_GAP = 0.55  # inches between two projection panels
+
+
+def _draw_projections(fig, ax, segments: np.ndarray, coloured, ctrl: np.ndarray, target: np.ndarray,
+                      unit: str) -> None:
+    """A space curve in three orthographic views at equal scale, side by side: the target points, the
+    curve coloured as ``coloured`` (its values, colour map and limits) and the control polygon."""
+    from matplotlib.collections import LineCollection
+
+    box = ax.get_position()
+    ax.set_axis_off()
+    ax.set_title("orthographic projections: the curve (coloured by distance) and its control polygon", loc="left",
+                 fontsize=10)
+    gap = PROJECTION_GAP / fig.get_figwidth()
+    w = (box.width - 2 * gap) / 3
+    everything = np.vstack([target, ctrl])
+    for i, (name, a, b) in enumerate(PROJECTIONS):
+        sub = fig.add_axes((box.x0 + i * (w + gap), box.y0, w, 0.86 * box.height))  # room for its title
+        sub.plot(target[:, a], target[:, b], ".", color="0.75", markersize=2, zorder=1)
+        lc = LineCollection(segments[:, :, [a, b]], cmap=coloured.get_cmap(), linewidths=1.6, zorder=3)
+        lc.set_array(coloured.get_array())
+        lc.set_clim(*coloured.get_clim())
+        sub.add_collection(lc)
+        sub.plot(ctrl[:, a], ctrl[:, b], "o-", color=MOVE_COLOUR, markersize=2.5, linewidth=0.8, zorder=2)
+        sub.update_datalim(everything[:, [a, b]])
+        sub.autoscale_view()
+        sub.set_aspect("equal", adjustable="datalim")
+        sub.margins(0.05)
+        sub.set_xlabel(f"{'xyz'[a]}, {unit}", fontsize=8)
+        sub.set_ylabel(f"{'xyz'[b]}, {unit}", fontsize=8, labelpad=1)
+        sub.tick_params(labelsize=7)
+        sub.set_title(f"{name} ({'xyz'[a]}, {'xyz'[b]})", fontsize=9)
 
 
 def _curve_template(result: Result, target: np.ndarray) -> Any:
@@ -396,19 +475,24 @@ def _draw_curve_strip(fig, ax, states: list, genome: tuple, steps: list[int], ta
     pts_all = np.vstack([target] + [states[k].points for k in steps])
     lo, hi = np.minimum(lo, pts_all.min(axis=0)), np.maximum(hi, pts_all.max(axis=0))
     w = box.width / len(steps)
+    space = target.shape[1] == 3
     for i, k in enumerate(steps):
-        sub = fig.add_axes((box.x0 + i * w, box.y0, w * 0.94, box.height))
+        sub = fig.add_axes((box.x0 + i * w, box.y0, w * 0.94, box.height), projection="3d" if space else None)
         sub.plot(*target.T, ".", color="0.8", markersize=1.5)
         sub.plot(*states[k].points.T, "o-", color=MOVE_COLOUR, markersize=2, linewidth=0.8)
         if len(states[k].points) > degree:
             sub.plot(*sample_curve(states[k].points, 200, degree, states[k].closed, states[k].corners).T,
                      color="black", linewidth=1.0)
+        label = "template" if k == 0 else f"{k}: {hist.op_label(genome[k - 1])}"
+        if space:  # a 3D panel has no x label to write under: the label goes in the panel's own text
+            _frame_space(sub, np.array([lo, hi]))
+            sub.text2D(0.5, 0.0, label, transform=sub.transAxes, ha="center", va="top", fontsize=7)
+            continue
         sub.update_datalim(np.array([lo, hi]))
         sub.autoscale_view()
         sub.set_aspect("equal", adjustable="datalim")
         sub.set_xticks([])
         sub.set_yticks([])
-        label = "template" if k == 0 else f"{k}: {hist.op_label(genome[k - 1])}"
         sub.set_xlabel(label, fontsize=7, labelpad=2)
 
 

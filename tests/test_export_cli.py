@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from matplotlib.image import imread
 from test_export_results import hand_result
 
 from gsr_cad.exporters import hosts
@@ -160,8 +161,14 @@ def test_a_closed_3d_curve_end_to_end_through_the_cli(gsr, tmp_path):
     out = tmp_path / "out"
     run = gsr("curve", data, "-o", out, "--seed", "1", "--quiet", "--formats", "step,dxf,cadquery,fcmacro")
     assert run.code == 0, run.err
+    assert run.err == ""  # no warning: the reports draw space curves too
     result = json.loads((out / "result.json").read_text())
     assert result["config"]["closed"] and len(result["control_points"][0]) == 3
+    for name in ("report.png", "report.html"):
+        assert f"wrote {out / name}" in run.out
+    assert imread(out / "report.png").shape[1] == 8 * 110  # report.png at its default size
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert page.count('"type":"scatter3d"') >= 4 and '"aspectmode":"data"' in page  # a 3D scene, not a plane
     manifest = json.loads((out / "exports.json").read_text())["files"]
     assert sorted(manifest) == ["curve.FCMacro", "curve.dxf", "curve.step", "curve_cadquery.py"]
     assert gsr("replay", out, "-o", out, "--formats", "svg").code == 2  # planar by nature: refused, one line

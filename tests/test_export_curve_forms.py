@@ -6,6 +6,8 @@ nature and refuse 3D curves (a default export skips them with a warning)."""
 
 from __future__ import annotations
 
+import json
+import subprocess
 import warnings
 
 import numpy as np
@@ -238,3 +240,95 @@ def test_the_host_scripts_knots_and_bezier_pieces_are_gsr_cads(degree):
             ours = curve_spline_of(ctrl, k, corners, knots, clamped).periodic_forms()[0]
             np.testing.assert_array_equal(poles, ours[0])
             assert values == ours[1].tolist() and mults == ours[2].tolist()
+
+
+def test_the_host_scripts_allow_an_op_exactly_where_gsr_cad_does():
+    """The FreeCAD macro's and the Blender script's op checks (hostside/curve_knots.py) accept an add, a move or
+    a corner exactly where gsr_cad's curve ops do, for every index on open and closed polygons with corners."""
+    import itertools
+
+    from gsr_cad.errors import GsrError
+    from gsr_cad.ops import curve as curve_ops
+
+    helper = _host_helper()
+    checked = 0
+    for k, n, closed in itertools.product((2, 3), range(4, 11), (False, True)):
+        pts = np.c_[np.arange(n, dtype=float), np.zeros(n)]
+        for size in (0, 1, 2):
+            for corners in itertools.combinations(range(n), size):
+                try:
+                    state = curve_ops.Polygon(pts, (-1.0, -1.0), (n + 1.0, 1.0), closed, corners, k)
+                except GsrError:
+                    continue
+                for index, (name, op) in itertools.product(range(n + 1), (
+                        ("corner", lambda i: curve_ops.Corner(i)),
+                        ("add_point", lambda i: curve_ops.AddPoint(i, (0.5, 0.5))),
+                        ("move_point", lambda i: curve_ops.MovePoint(i, (0.0, 0.25))))):
+                    try:
+                        ours = op(index).apply(state)
+                    except GsrError:
+                        ours = None
+                    try:
+                        if name == "corner":
+                            theirs = helper["with_corner"](list(state.corners), index, n, k, closed)
+                        else:
+                            theirs = helper["check_index"](name, index, n, closed)
+                    except ValueError as exc:
+                        assert ours is None, (name, index, n, k, closed, corners)
+                        assert (f"{name} {index}" if name == "corner" else f"{name} index {index}") in str(exc)
+                        continue
+                    assert ours is not None, (name, index, n, k, closed, corners)
+                    if name == "corner":
+                        assert theirs == list(ours.corners)
+                    checked += 1
+    assert checked > 3000
+
+
+def test_blender_refuses_a_corner_where_gsr_cad_allows_none(tmp_path):
+    """The Blender curve script, edited to put a corner next to the end of an open curve, stops with the
+    reason; the same script with the corner where gsr_cad allows it builds the curve."""
+    from gsr_cad.exporters.encode import fill_python
+
+    if not hosts.find_host("blender"):
+        pytest.skip("Blender is not installed")
+    template = [[0.0, 0.0], [1.0, 1.0], [2.0, 0.0], [3.0, 1.0], [4.0, 0.0], [5.0, 1.0], [6.0, 0.0]]
+
+    def script(index):
+        path = tmp_path / f"corner_{index}.py"
+        path.write_text(fill_python("blender_curve.py", {
+            "name": "c", "degree": 3, "closed": False, "resolution": 12, "template": template,
+            "steps": [{"label": "template", "op": None}, {"label": "corner", "op": {"op": "corner", "index": index}}],
+        }))
+        return path
+
+    hosts.run_blender(script(3), ["--json", tmp_path / "ok.json"])
+    built = json.loads((tmp_path / "ok.json").read_text())
+    assert len(built["bezier"]) == 3  # two Bezier pieces meeting at the corner: 3 Bezier points
+    with pytest.raises(ExportError, match="blender failed"):
+        hosts.run_blender(script(2))
+    run = subprocess.run([hosts.find_host("blender"), "-b", "--factory-startup", "--python-exit-code", "1",
+                          "--python", str(script(2))], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1
+    assert "ValueError: corner 2 not allowed with corners [] on 7 points of degree 3" in run.stdout + run.stderr
+
+
+def test_openscad_checks_that_a_closed_stroke_is_joined_at_its_seam(results, tmp_path):
+    """The square's seam is one of its corners (a 90 degree turn): the rendered stroke passes the seam check,
+    and the same file with its seam join taken out fails it with the notch's depth."""
+    from gsr_cad.exporters.openscad import OpenscadExporter, stroke_width
+
+    if not hosts.find_host("openscad"):
+        pytest.skip("OpenSCAD is not installed")
+    result = results["square"]
+    spline = curve_spline(result)
+    assert spline.closed and np.allclose(spline.points(np.array([0.0]))[0], [0.0, 0.0], atol=1e-9)
+    exporter = OpenscadExporter()
+    ((name, text),) = exporter.render_curve(result, "curve").items()
+    path = tmp_path / name
+    assert text.count("if (gsr_closed) let") == 1
+    for joined in (True, False):
+        path.write_text(text if joined else text.replace("if (gsr_closed) let", "if (false) let"))
+        (seam,) = [c for c in exporter.validate_curve(path, result) if c.check == "curve: joined at the seam"]
+        assert seam.passed is joined
+        if not joined:  # the join's centroid, h * sqrt(2) / 3 out along the bisector: h / 3 from the notch's sides
+            assert seam.deviation == pytest.approx(stroke_width(spline) / 2 / 3, rel=0.02)

@@ -7,9 +7,11 @@ the page. Needs Debian's ``chromium`` (scripts/test.sh installs it when run as r
 
 from __future__ import annotations
 
+import base64
 import html
 import json
 import os
+import re
 import select
 import subprocess
 import time
@@ -31,7 +33,9 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftsh
          "--remote-debugging-pipe"]
 FIGURES = """JSON.stringify(Array.from(document.querySelectorAll('.js-plotly-plot')).map(d => ({
   id: d.id, names: (d.data || []).map(t => t.name), types: (d.data || []).map(t => t.type),
-  drawn: d.querySelectorAll('.main-svg').length > 0})))"""
+  points: (d._fullData || []).map(t => (t.x || []).length), scenes: Object.keys(d._fullLayout || {})
+    .filter(k => /^scene[0-9]*$/.test(k)).map(k => d._fullLayout[k].aspectmode),
+  canvases: d.querySelectorAll('canvas').length, drawn: d.querySelectorAll('.main-svg').length > 0})))"""
 
 
 class DevTools:
@@ -153,6 +157,20 @@ def curve_page(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
+def space_curve_page(tmp_path_factory):
+    """The report of a real fit of a helix, with a ground truth (its control points lifted) to draw."""
+    t = np.linspace(0, 4 * np.pi, 300)
+    pts = np.column_stack([np.cos(t), np.sin(t), 0.2 * t])
+    result = reconstruct_curve(pts, seed=0, units="mm", max_distance=1e-3, initial_population=60, population=16,
+                               generations=6)
+    add_model_units(result)
+    truth = result.control_points + np.array([0.0, 0.0, 0.05])
+    page = html_report.curve_html(result, pts, tmp_path_factory.mktemp("h") / "report.html", truth=truth,
+                                  title="helix <b>&</b>")
+    return page, result, pts
+
+
+@pytest.fixture(scope="module")
 def surface_page(tmp_path_factory):
     s = get_sample("inset_extrude")
     result = reconstruct_surface(s.target, seed=1, units="mm", population=10, initial_population=10, n_parents=4,
@@ -185,6 +203,62 @@ def test_curve_report_loads_in_chromium_with_target_and_result(curve_page, tmp_p
     assert all(f["drawn"] for f in figures)
     assert {"target", "result", "control polygon", "ground truth", "worst point"} <= set(by_id["shape"]["names"])
     assert {"deviation", "worst point", "tolerance"} <= set(by_id["deviation"]["names"])
+
+
+def figure_data(page: Path, div_id: str) -> list[dict]:
+    """The traces plotly is given for the figure ``div_id`` (the JSON of its ``Plotly.newPlot`` call)."""
+    text = page.read_text(encoding="utf-8")
+    call = re.search(r'Plotly\.newPlot\(\s*"' + div_id + r'",\s*', text)
+    data, _ = json.JSONDecoder().raw_decode(text, call.end())
+    return data
+
+
+def xyz(trace: dict) -> np.ndarray:
+    """A trace's points as rows, its typed arrays (``{"dtype", "bdata"}``, base64) decoded."""
+    def column(value):
+        if isinstance(value, dict):
+            return np.frombuffer(base64.b64decode(value["bdata"]), dtype=value["dtype"])
+        return np.asarray(value, dtype=float)
+
+    return np.column_stack([column(trace[k]) for k in "xyz"])
+
+
+def test_a_space_curve_page_has_3d_traces_with_every_point(space_curve_page):
+    from gsr_cad.plots import CURVE_SAMPLES
+
+    page, result, pts = space_curve_page
+    traces = {t["name"]: t for t in figure_data(page, "shape")}
+    assert {n: t["type"] for n, t in traces.items()} == {n: "scatter3d" for n in (
+        "target", "result", "control polygon", "ground truth", "worst point")}
+    np.testing.assert_allclose(xyz(traces["target"]), pts)
+    np.testing.assert_allclose(xyz(traces["control polygon"]), result.control_points)
+    assert len(xyz(traces["result"])) == CURVE_SAMPLES and len(xyz(traces["worst point"])) == 1
+    diag = result.config["target"]["diagonal"]
+    colour = xyz({k: traces["result"]["marker"]["color"] for k in "xyz"})[:, 0]
+    assert colour.max() == pytest.approx(result.metrics["data_to_fit_max"] * diag, rel=0.05)  # in mm
+    history = figure_data(page, "history")
+    assert all(t["type"] == "scatter3d" for t in history)
+    np.testing.assert_allclose(xyz(history[-1]), result.control_points)
+    text = page.read_text(encoding="utf-8")
+    assert "helix &lt;b&gt;&amp;&lt;/b&gt;: curve report" in text and "<b>&</b>" not in text
+
+
+@needs_chromium
+def test_space_curve_report_loads_in_chromium_as_3d_scenes(space_curve_page, tmp_path):
+    page, result, pts = space_curve_page
+    figures, errors, requests = open_in_chromium(page, tmp_path / "profile")
+    assert errors == [] and requests == []
+    by_id = {f["id"]: f for f in figures}
+    assert {"shape", "deviation", "history", "genome", "convergence"} <= set(by_id)
+    assert all(f["drawn"] for f in figures)
+    shape = by_id["shape"]
+    assert dict(zip(shape["names"], shape["types"])) == {n: "scatter3d" for n in (
+        "target", "result", "control polygon", "ground truth", "worst point")}
+    counts = dict(zip(shape["names"], shape["points"]))
+    assert counts["target"] == len(pts) and counts["control polygon"] == len(result.control_points)
+    assert shape["scenes"] == ["data"] and shape["canvases"] > 0  # a WebGL scene at equal scale
+    assert by_id["history"]["scenes"] == ["data"] and by_id["deviation"]["scenes"] == []
+    assert by_id["history"]["points"][-1] == len(result.control_points)
 
 
 @needs_chromium

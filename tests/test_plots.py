@@ -293,3 +293,121 @@ def test_surface_report_draws_the_target_beside_the_result_in_three_views(tmp_pa
     assert "lengths in mm" in fig._suptitle.get_text()
     again = Result.from_json(result.to_json())  # no target: the result alone, uncoloured, still drawn
     assert surface_report(again, tmp_path / "r.png").stat().st_size > 10_000
+
+
+def helix_points(m: int = 300) -> np.ndarray:
+    t = np.linspace(0, 4 * np.pi, m)
+    return np.column_stack([np.cos(t), np.sin(t), 0.2 * t])
+
+
+@pytest.fixture(scope="module")
+def helix_run():
+    from gsr_cad.reconstruct.curve import reconstruct_curve
+    from gsr_cad.reconstruct.summary import add_model_units
+
+    pts = helix_points()
+    result = reconstruct_curve(pts, seed=0, units="mm", max_distance=1e-3, initial_population=60, population=16,
+                               generations=6)
+    add_model_units(result)
+    return pts, result
+
+
+def spline_oracle(result):
+    """The result's own curve form, and target distances by brute force on 200 001 of its points."""
+    from gsr_cad.geometry.bspline import make_spline
+
+    cfg = result.config
+    return make_spline(result.control_points, result.degree, cfg["closed"], cfg["corners"])
+
+
+def test_a_space_curve_report_draws_its_geometry_in_3d_at_equal_scale(helix_run):
+    pts, result = helix_run
+    ctrl = result.control_points
+    truth = ctrl + np.array([0.0, 0.0, 0.05])  # a ground truth to draw under the result
+    fig = curve_figure(result, pts, truth)
+    ax = axis(fig, "result curve")
+    assert ax.name == "3d"
+    lc = line_collection(ax)
+    segs = np.asarray(lc._segments3d)  # the 3D segments (get_segments gives their projection)
+    spline = spline_oracle(result)
+    np.testing.assert_allclose(segs[:, 0], spline(np.linspace(0, 1, CURVE_SAMPLES))[:-1], atol=1e-9)
+    fine = np.linspace(0, 1, 200_001)
+    dist, idx = cKDTree(spline(fine)).query(pts)
+    order = np.argsort(fine[idx], kind="stable")
+    d = np.interp(np.linspace(0, 1, CURVE_SAMPLES), fine[idx][order], dist[order])
+    diag = result.config["target"]["diagonal"]
+    np.testing.assert_allclose(lc.get_array(), 0.5 * (d[1:] + d[:-1]), atol=1e-5 * diag)
+    assert lc.get_clim()[1] == pytest.approx(dist.max(), rel=1e-3)
+    assert lc.get_clim()[1] == pytest.approx(result.metrics["data_to_fit_max"] * diag, rel=1e-3)  # bar top = metric
+    target, worst = ax.collections[0], ax.collections[-1]
+    np.testing.assert_array_equal(np.column_stack(target._offsets3d), pts)
+    np.testing.assert_array_equal(np.column_stack(worst._offsets3d), pts[[np.argmax(dist)]])
+    everything = np.vstack([pts, ctrl, truth])
+    box = np.asarray(ax.get_box_aspect())
+    side = np.ptp(everything, axis=0) + 0.08 * np.ptp(everything, axis=0).max()
+    np.testing.assert_allclose(box / box.max(), side / side.max(), rtol=1e-9)  # equal scale on x, y and z
+    assert ax.get_zlabel() == "z, mm"
+
+    poly = axis(fig, "result control polygon over the ground-truth")
+    assert poly.name == "3d"
+    lines = {line.get_label(): np.column_stack(line.get_data_3d()) for line in poly.get_lines()}
+    np.testing.assert_array_equal(lines[f"result ({len(ctrl)} points)"], ctrl)
+    np.testing.assert_array_equal(lines[f"ground truth ({len(ctrl)} points)"], truth)
+    assert f"max point deviation {0.05:.3g} mm" in poly.get_title(loc="left")
+
+    dev = axis(fig, "deviation along the curve")  # the 2D rows stay as they are
+    (tol,) = [ln for ln in dev.get_lines() if ln.get_label().startswith("tolerance")]
+    assert tol.get_ydata()[0] == pytest.approx(1e-3 * diag) and tol.get_label().endswith(": met")
+    assert len(axis(fig, "genome").patches) == len(result.genome)
+    np.testing.assert_allclose(axis(fig, "convergence").get_lines()[-1].get_ydata(),
+                               [h["best_fitness"] for h in result.history])
+
+
+def test_a_space_curve_history_strip_is_3d_and_ends_at_the_result(helix_run):
+    pts, result = helix_run
+    fig = curve_figure(result, pts)
+    panels = [a for a in fig.axes if a.name == "3d" and a.texts]
+    labels = [a.texts[0].get_text() for a in panels]
+    assert 2 <= len(panels) <= 8 and labels[0] == "template"
+    assert labels[-1] == f"{len(result.genome)}: {result.genome[-1].name}"
+    np.testing.assert_allclose(np.column_stack(panels[-1].get_lines()[1].get_data_3d()), result.control_points)
+    template = np.asarray(result.config["template"], dtype=float)
+    np.testing.assert_allclose(np.column_stack(panels[0].get_lines()[1].get_data_3d()), template)
+
+
+def test_a_space_curve_report_png_is_written_and_bad_dimensions_are_refused(helix_run, tmp_path):
+    pts, result = helix_run
+    path = curve_report(result, pts, tmp_path / "report.png", title="helix $x$", dpi=60)
+    img = imread(path)[..., :3]
+    assert img.shape[1] == 8 * 60
+    assert np.sum(np.all(np.abs(img - to_rgb(MOVE_COLOUR)) < 0.02, axis=2)) > 50  # the polygon, the moves
+    assert "helix \\$x\\$" in curve_figure(result, pts, title="helix $x$")._suptitle.get_text()  # no mathtext
+    with pytest.raises(InputError, match=r"result control points .* x, y rows \(the target points' dimension\)"):
+        curve_report(result, pts[:, :2], tmp_path / "bad.png")  # a 3D result over planar points
+    with pytest.raises(InputError, match="ground-truth"):
+        curve_report(result, pts, tmp_path / "bad.png", truth=np.zeros((4, 2)))
+    assert not (tmp_path / "bad.png").exists()
+
+
+def test_a_space_curve_report_has_its_three_orthographic_projections(helix_run):
+    from gsr_cad.plots import PROJECTIONS
+
+    pts, result = helix_run
+    fig = curve_figure(result, pts)
+    coloured = line_collection(axis(fig, "result curve"))
+    segs3d = np.asarray(coloured._segments3d)
+    views = {a.get_title(): a for a in fig.axes if a.get_title().startswith(("top", "front", "side"))}
+    assert sorted(views) == ["front (x, z)", "side (y, z)", "top (x, y)"]
+    for name, a, b in PROJECTIONS:
+        ax = views[f"{name} ({'xyz'[a]}, {'xyz'[b]})"]
+        lc = line_collection(ax)
+        np.testing.assert_array_equal(np.asarray(lc.get_segments()), segs3d[:, :, [a, b]])
+        np.testing.assert_array_equal(lc.get_array(), coloured.get_array())
+        assert lc.get_clim() == coloured.get_clim()
+        (polygon,) = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+        np.testing.assert_array_equal(polygon.get_xydata(), result.control_points[:, [a, b]])
+        assert ax.get_aspect() == 1.0 and ax.get_xlabel() == f"{'xyz'[a]}, mm"
+    planar = get_sample("bspline_05")  # a planar report has no projection row
+    genome, ctrl = genome_onto(planar.points, planar.truth_ctrl)
+    assert not [a for a in curve_figure(make_result(ctrl, genome, history(2)), planar.points).axes
+                if a.get_title().startswith("top (")]

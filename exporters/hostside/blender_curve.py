@@ -1,9 +1,9 @@
 """A gsr_cad curve for Blender 3.4: the modelling history replayed, then the exact curve as a Bezier spline.
 
 Written by gsr_cad's "blender" exporter; everything specific to this curve is in DATA below. The history
-is replayed op by op (add, move, corner) on the template polygon: after every step a hidden poly-curve
-object named after it (in the collection "<name> history"; the last step stays visible as the control
-polygon) shows the control polygon at that point. The curve is the B-spline of DATA["degree"] on the last
+is replayed op by op (add, move, corner; each only where gsr_cad allows it, else ValueError) on the template
+polygon: after every step a hidden poly-curve object named after it (in the collection "<name> history"; the
+last step stays visible as the control polygon) shows the control polygon at that point. The curve is the B-spline of DATA["degree"] on the last
 polygon, open (clamped) or closed (periodic, DATA["closed"]), every corner a knot of multiplicity degree,
 in the plane or in space. Blender's NURBS cannot repeat interior knots, so the script converts the B-spline
 into its exact Bezier pieces (knot insertion; quadratic pieces raised to cubic) and builds a Bezier spline
@@ -18,25 +18,29 @@ import json
 import sys
 
 import bpy
-from curve_knots import bezier_pieces  # gsr:inline
+from curve_knots import bezier_pieces, check_index, with_corner  # gsr:inline
 
 DATA = {}
 
 
 def add_point(points, corners, index, position):
-    """Insert a control point so that it becomes points[index]; later corners keep their points."""
+    """Insert a control point so that it becomes points[index] (1 <= index <= n - 1, closed: <= n); later
+    corners keep their points."""
+    check_index("add_point", index, len(points), DATA["closed"])
     points.insert(index, tuple(position))
     corners[:] = [c + (c >= index) for c in corners]
 
 
 def move_point(points, corners, index, delta):
-    """Translate points[index] by delta."""
+    """Translate points[index] by delta (an open curve's end points stay: 1 <= index <= n - 2)."""
+    check_index("move_point", index, len(points), DATA["closed"])
     points[index] = tuple(c + d for c, d in zip(points[index], delta))
 
 
 def corner(points, corners, index):
-    """Make points[index] a C0 corner (a knot of multiplicity degree)."""
-    corners[:] = sorted(set(corners) | {index})
+    """Make points[index] a C0 corner (a knot of multiplicity degree): at least degree points from every other
+    corner and, on an open curve, from the ends."""
+    corners[:] = with_corner(corners, index, len(points), DATA["degree"], DATA["closed"])
 
 
 OPS = {"add_point": add_point, "move_point": move_point, "corner": corner}

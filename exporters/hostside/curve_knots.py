@@ -1,10 +1,35 @@
 """Knot vectors and Bezier pieces of gsr_cad's curve forms in plain Python, for the host scripts.
 
 The FreeCAD macro and the Blender curve script rebuild the curve from their own replay of the history, so
-they compute its knots themselves. gsr_cad's literal encoder copies the code below into each of them in place
+they check its ops where gsr_cad's rules allow them and compute its knots themselves. gsr_cad's literal encoder copies the code below into each of them in place
 of their line ``from curve_knots import ...  # gsr:inline`` (:func:`gsr_cad.exporters.encode.fill_python`);
 the scripts stay self-contained, and gsr_cad's tests hold this code to ``gsr_cad.geometry.bspline``.
 """
+
+
+def check_index(op, index, n, closed):
+    """ValueError unless `index` is where the curve op `op` may apply on n points, by gsr_cad's rules: an
+    insertion becomes points[index] for 1 <= index <= n - 1 (closed: <= n); a move keeps an open curve's ends
+    (1 <= index <= n - 2; closed: any point)."""
+    if op == "add_point":
+        lo, hi = 1, n if closed else n - 1
+    else:
+        lo, hi = (0, n - 1) if closed else (1, n - 2)
+    if not lo <= index <= hi:
+        raise ValueError("%s index %d outside [%d, %d]" % (op, index, lo, hi))
+
+
+def with_corner(corners, index, n, k, closed):
+    """The corners, sorted, with points[index] made a C0 corner (an interior knot of multiplicity k); ValueError
+    where gsr_cad allows none: an index already a corner, off the points (an open curve's: k points from
+    either end), or fewer than k points from another corner (across the seam of a closed curve)."""
+    out = sorted(set(corners) | {index})
+    lo, hi = (0, n - 1) if closed else (k, n - 1 - k)
+    gaps = [b - a for a, b in zip(out, out[1:] + ([out[0] + n] if closed else []))]
+    if index in corners or not lo <= index <= hi or (gaps and min(gaps) < k):
+        raise ValueError("corner %d not allowed with corners %s on %d points of degree %d"
+                         % (index, sorted(corners), n, k))
+    return out
 
 
 def form_knots(n, k, closed, corners, spare=0):

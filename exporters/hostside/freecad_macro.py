@@ -31,7 +31,7 @@ import sys
 
 import FreeCAD as App
 import Part
-from curve_knots import distinct, form_knots, periodic_form  # gsr:inline
+from curve_knots import check_index, distinct, form_knots, periodic_form, with_corner  # gsr:inline
 
 DATA = {}
 
@@ -49,17 +49,13 @@ def _pair(v):
 def add_point(points, corners, index, position):
     """Insert a control point so that it becomes points[index] (1 <= index <= n - 1, closed: <= n); later
     corners keep their points."""
-    top = len(points) if DATA["closed"] else len(points) - 1
-    if not 1 <= index <= top:
-        raise ValueError("add_point index %d outside [1, %d]" % (index, top))
+    check_index("add_point", index, len(points), DATA["closed"])
     return points[:index] + [list(position)] + points[index:], [c + (c >= index) for c in corners]
 
 
 def move_point(points, corners, index, delta):
     """Translate points[index] by delta (an open curve's end points stay: 1 <= index <= n - 2)."""
-    lo, hi = (0, len(points) - 1) if DATA["closed"] else (1, len(points) - 2)
-    if not lo <= index <= hi:
-        raise ValueError("move_point index %d outside [%d, %d]" % (index, lo, hi))
+    check_index("move_point", index, len(points), DATA["closed"])
     moved = [c + d for c, d in zip(points[index], delta)]
     return points[:index] + [moved] + points[index + 1:], list(corners)
 
@@ -67,13 +63,7 @@ def move_point(points, corners, index, delta):
 def corner(points, corners, index, _=None):
     """Make points[index] a C0 corner: an interior knot of multiplicity degree (the curve passes through it);
     corners lie at least degree points apart and, on an open curve, degree points from the ends."""
-    n, k = len(points), DATA["degree"]
-    out = sorted(set(corners) | {index})
-    lo, hi = (0, n - 1) if DATA["closed"] else (k, n - 1 - k)
-    gaps = [b - a for a, b in zip(out, out[1:] + ([out[0] + n] if DATA["closed"] else []))]
-    if index in corners or not lo <= index <= hi or (gaps and min(gaps) < k):
-        raise ValueError("corner %d not allowed with corners %s on %d points" % (index, sorted(corners), n))
-    return list(points), out
+    return list(points), with_corner(corners, index, len(points), DATA["degree"], DATA["closed"])
 
 
 OPS = {"add_point": (add_point, "Position"), "move_point": (move_point, "Delta"), "corner": (corner, None)}

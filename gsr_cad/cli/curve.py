@@ -60,19 +60,14 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {w.message}", file=sys.stderr)
     settle_stop(result)
     add_model_units(result)
-    planar = target.points.shape[1] == 2
     written = write_outputs(progress, [
         ("writing result.json", lambda: result.save(out)),
         ("writing control_points.csv",
          lambda: write_control_points(out / "control_points.csv", result.control_points)),
-    ] + ([
         ("drawing report.png",
          lambda: plots_module().curve_report(result, target.points, out / "report.png", truth=truth)),
         ("drawing report.html",
          lambda: reports.curve_html(result, target.points, out / "report.html", truth=truth)),
-    ] if planar else []) + [
         ("writing the exports", lambda: write_exports(result, out, formats)),
     ])
-    if not planar:
-        print("  no report.png / report.html: the reports draw planar curves only", file=sys.stderr)
     return finish(result, out, written[2:])
