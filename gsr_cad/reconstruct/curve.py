@@ -123,8 +123,13 @@ class CurveProblem:
         Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent; the
         trie makes a look-up linear in the genome's length (long histories of real curves have hundreds of ops).
         """
+        return self._walk(prefix)[0]
+
+    def _walk(self, ops: tuple, keep: list | None = None) -> tuple[curve_ops.Polygon, dict]:
+        """Walk ``ops`` through the trie (applying each new op once); ``keep`` collects the valid ones (an add
+        beyond :attr:`max_ctrl` counts as invalid there)."""
         state, children = self.template, self._trie
-        for op in prefix:
+        for op in ops:
             entry = children.get(op)
             if entry is None:
                 try:
@@ -133,10 +138,15 @@ class CurveProblem:
                     nxt = state
                 entry = children[op] = (nxt, {})
                 self._trie_size += 1
+            nxt = entry[0]
+            if keep is not None:
+                if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
+                    continue
+                keep.append(op)
             state, children = entry
         if self._trie_size >= 200_000:
             self._trie, self._trie_size = {}, 0
-        return state
+        return state, children
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
@@ -147,15 +157,7 @@ class CurveProblem:
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         kept: list = []
-        state = self.template
-        for op in genome:
-            if isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl:
-                continue
-            try:
-                state = op.apply(state)
-            except OpError:
-                continue
-            kept.append(op)
+        state = self._walk(tuple(genome), kept)[0]
         while len(kept) < self.config.min_ops:
             op = self.random_gene(rng, tuple(kept))
             try:
@@ -342,10 +344,12 @@ class CurveProblem:
     # --- the winner --------------------------------------------------------------------------------
     def final(self, genome: tuple, hurry: bool = False
               ) -> tuple[np.ndarray, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
-        """Refined control points, their corners, and the structure (search corners, counts) of the winner.
+        """Control points, their corners, and the structure (search corners, counts) of the winner.
 
-        With a limit and a subsampled search, segments that miss it on all points get more control points
-        (up to four rounds). ``hurry``: the search's placement as it is (no refinement, no check)."""
+        Without a limit the placement is refined to convergence. With one, the curve is checked on all points
+        (both ways) and segments that miss get more control points, or, once at their most, are fitted to
+        the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
+        search's placement as it is (no refinement, no check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
         if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
@@ -355,46 +359,49 @@ class CurveProblem:
             if counts is None:
                 corners = ()
                 counts = self.model.allocation((), self.model.minimum_total(()))
-        ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
-        full = self.prepared.points
         if self.config.max_distance is None or hurry:
+            ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
             return ctrl, idx, corners, counts
         keys = self.model.segments(corners)
+        full = self.prepared.points
         tree = cKDTree(full)
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
-        best = None
-        for _ in range(4):
+        limit = self.config.max_distance * self.diag
+        grown, best = list(counts), None
+        for _ in range(8):
+            ctrl, idx = self.model.assemble(corners, tuple(grown))
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
                                              with_samples=True)
             worst = max(float(there.max()), float(back.max()))
             if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
-                best = (worst, ctrl, idx, counts)
-            limit = self.config.max_distance * self.diag
+                best = (worst, ctrl, idx, tuple(grown))
             bad = np.flatnonzero(there > limit)
             bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
             if not bad.size:
                 break
-            pos = np.searchsorted(self.prepared.search, bad).clip(0, self.m - 1)
-            hit = set()
-            for p in np.unique(pos):
-                for i, (a, b) in enumerate(keys):
-                    if (a, b) == (-1, -1) or a <= p <= b or a <= p + self.m <= b:
-                        hit.add(i)
-            grown = tuple(min(self.model.max_count(k), c + max(1, c // 10)) if i in hit else c
-                          for i, (k, c) in enumerate(zip(keys, counts)))
-            if grown == counts:
+            changed = False
+            for i in self._segments_of(keys, np.unique(np.searchsorted(self.prepared.search, bad))):
+                key, top = keys[i], self.model.max_count(keys[i])
+                if grown[i] < top:
+                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20))
+                    changed = True
+                elif self.model.densify(key):
+                    grown[i] = self.model.need(key, self.limit)
+                    changed = True
+            if not changed:
                 break
-            counts = grown
-            ctrl, idx = self.model.assemble(corners, counts, refine=True)
-        else:
-            spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
-            there, back = two_sided(spline, full, self.closed, per_span=32, corners=data_corners)
-            if max(float(there.max()), float(back.max())) < best[0]:
-                best = (max(float(there.max()), float(back.max())), ctrl, idx, counts)
-        if max(float(there.max()), float(back.max())) > best[0]:
-            _, ctrl, idx, counts = best
+        _, ctrl, idx, counts = best
         return ctrl, idx, corners, counts
+
+    def _segments_of(self, keys: list, positions: np.ndarray) -> list[int]:
+        """Indices of the segments (``keys``) holding any of the search ``positions``."""
+        pos = np.asarray(positions, dtype=np.int64).clip(0, self.m - 1)
+        hit = []
+        for i, (a, b) in enumerate(keys):
+            if (a, b) == (-1, -1) or np.any(((pos >= a) & (pos <= b)) | ((pos + self.m >= a) & (pos + self.m <= b))):
+                hit.append(i)
+        return hit
 
 
 def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,

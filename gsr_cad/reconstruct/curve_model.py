@@ -141,7 +141,7 @@ class CurveModel:
         mids = 0.5 * (u[:-1] + u[1:])
         if closed:
             mids = np.concatenate([mids, [np.mod(0.5 * (u[-1] + u[0] + 1.0), 1.0)]])
-        back = curve_to_points(spline, pts, closed, per_span=8, extra=mids, model=model)
+        back = curve_to_points(spline, pts, closed, per_span=16, extra=mids, model=model)
         gaps = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]) if closed else pts, axis=0), axis=1)
         return SegmentFit(fit, float(np.sum(fit.distances ** 2)), float(fit.distances.max()), float(back.max()),
                           0.5 * float(gaps.max()))
@@ -204,10 +204,7 @@ class CurveModel:
             if n >= top and key not in self._densified and not bounded:
                 # Coarse data: between samples the curve cannot follow both the points and their model.
                 # Fit the model's samples instead (they include the points) and search again.
-                self._densified.add(key)
-                for stale in [fk for fk in self._fits if fk[0] == key]:
-                    del self._fits[stale]
-                self._lower.pop(key, None)
+                self.densify(key)
                 return self.need(key, limit, upto)
             if n >= top:  # the limit is out of reach: the tried count that came closest
                 tried = [c for (k, c) in self._fits if k == key]
@@ -223,6 +220,19 @@ class CurveModel:
                 bad = mid
         self._need[key] = good
         return good
+
+    def densify(self, key: Key) -> bool:
+        """Fit segment ``key`` to its data model's samples from now on (the points alone are too coarse for the
+        limit); False when it already is."""
+        if key in self._densified:
+            return False
+        self._densified.add(key)
+        for stale in [fk for fk in self._fits if fk[0] == key]:
+            del self._fits[stale]
+        self._lower.pop(key, None)
+        self._need.pop(key, None)
+        self._alloc.clear()
+        return True
 
     def _spans_sharp(self, key: Key) -> bool:
         """Whether a sharp candidate (turning twice the corner angle) lies strictly inside the segment: smoothing
