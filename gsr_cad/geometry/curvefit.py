@@ -206,7 +206,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
              for p in starts]
     params, dist = min(first, key=lambda pd: float(np.sum(pd[1] ** 2)))
     fit: CurveFit | None = None
-    for _ in range(max(1, iterations)):
+    step = 1.0  # over-relaxation of the parameter update: correction creeps along the curve, so steps that
+    for _ in range(max(1, iterations)):  # keep improving grow; a step that does not is retried plainly
         params = _ordered(params, closed)
         ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, closed=closed)
         new_params, dist = _project(ctrl, target, params, degree, closed)
@@ -215,22 +216,30 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
         if fit is None or candidate.rms < fit.rms:
             fit = candidate
         if not improved:
-            break
-        params = new_params
+            if step == 1.0:
+                break
+            step, params = 1.0, fit.params
+            continue
+        delta = new_params - params
+        if closed:
+            delta = np.mod(delta + 0.5, 1.0) - 0.5
+        params = params + step * delta
+        step = min(4.0, 1.5 * step)
     return fit
 
 
 def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iterations: int = 30,
-                   lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> CurveFit:
+                   lo: np.ndarray | None = None, hi: np.ndarray | None = None, goal: float | None = None) -> CurveFit:
     """Lower the *maximum* distance of a fit (Lawson's iteratively reweighted least squares).
 
     Least squares minimises the RMS; a CAD tolerance is a maximum. Lawson's weights (multiplied by each
     point's current distance) drive the weighted solution toward the minimax one; parameters follow by
-    foot points. Returns the iterate with the smallest maximum distance.
+    foot points. Returns the iterate with the smallest maximum distance, as soon as it is within ``goal`` (when
+    given) or after twelve rounds without a new smallest.
     """
     n_ctrl, closed = len(fit.ctrl), fit.closed
     weights = np.full(len(target), 1.0 / len(target))
-    best, params, dist = fit, fit.params, fit.distances
+    best, params, dist, since = fit, fit.params, fit.distances, 0
     for _ in range(iterations):
         weights = weights * np.maximum(dist, 1e-300)
         total = weights.sum()
@@ -241,5 +250,9 @@ def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iteration
         ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, weights=weights, closed=closed)
         params, dist = _project(ctrl, target, params, degree, closed)
         if dist.max() < best.distances.max():
-            best = CurveFit(ctrl, params, dist, closed)
+            best, since = CurveFit(ctrl, params, dist, closed), 0
+        else:
+            since += 1
+        if (goal is not None and best.distances.max() <= goal) or since >= 12:
+            break
     return best

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import genome as genome_mod
-from ..errors import OpError
+from ..errors import ConfigError, OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
 from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
@@ -439,6 +439,13 @@ def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: in
 
 
 def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
+    stall = config.tolerance_stall_generations
+    if isinstance(stall, bool) or not isinstance(stall, int) or stall < 0:
+        raise ConfigError(f"tolerance-stall-generations must be a whole number >= 0, not {stall!r}")
+    if config.max_distance is not None and config.polish and stall:
+        stall = min(stall, config.stall_generations) if config.stall_generations else stall
+    else:
+        stall = config.stall_generations
     return GAConfig(
         scheme="steady_state",
         initial_population=config.initial_population,
@@ -451,7 +458,7 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
         elite_fraction=config.elite_fraction,
         generations=config.generations,
         threshold=problem.threshold() or 0.0,
-        stall_generations=config.stall_generations or None,
+        stall_generations=stall or None,
         max_seconds=config.max_seconds or None,
         local_search_every=1 if config.polish else 0,
     )

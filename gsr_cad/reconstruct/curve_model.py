@@ -96,12 +96,20 @@ class CurveModel:
         cap = max(self.degree + 1, (2 * size) // 3)
         return min(cap, self.config.max_control_points) if self.config.max_control_points else cap
 
+    def _inner_candidates(self, key: Key) -> np.ndarray:
+        """Corner candidates inside segment ``key``, as indices into :meth:`segment_points`: the data's model is
+        sharp there whether or not the curve makes them corners (as in the final check on all points)."""
+        if key == PERIODIC:
+            return self.candidates
+        rel = np.mod(self.candidates - key[0], self.m)
+        return rel[(rel > 0) & (rel < key[1] - key[0])]
+
     def _fit_points(self, key: Key) -> np.ndarray:
         """The segment's points, densified along the polyline when it has too few for a well-posed fit, or
         sampled on the data model when the data alone are too coarse for the limit (see :meth:`need`)."""
         pts = self.segment_points(key)
         if key in self._densified:
-            dense = data_model(pts, key == PERIODIC, per_segment=4)
+            dense = data_model(pts, key == PERIODIC, self._inner_candidates(key), per_segment=4)
             return dense[:-1] if key == PERIODIC else dense
         while len(pts) < 2 * (self.degree + 2) and key != PERIODIC:
             mid = 0.5 * (pts[:-1] + pts[1:])
@@ -126,7 +134,8 @@ class CurveModel:
                         hi=self.hi, warm_params=warm, closed=closed)
         limit = self.limit
         if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
-            fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)  # a tolerance is a maximum
+            fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi,  # a tolerance is a maximum
+                                 goal=0.9 * limit * self.diag)
         out = self._measure(key, pts, fit)
         self._fits[(key, n)] = out
         return out
@@ -134,8 +143,8 @@ class CurveModel:
     def _measure(self, key: Key, pts: np.ndarray, fit: CurveFit) -> SegmentFit:
         closed = key == PERIODIC
         model = self._models.get(key)
-        if model is None:  # the data's local model (sharp at the segment's ends, which are corners or ends)
-            model = self._models[key] = data_model(pts, closed)
+        if model is None:  # the data's local model, sharp at the segment's ends and at the candidates inside it
+            model = self._models[key] = data_model(self.segment_points(key), closed, self._inner_candidates(key))
         spline = bspline.make_spline(fit.ctrl, self.degree, closed)
         u = np.sort(fit.params)
         mids = 0.5 * (u[:-1] + u[1:])
