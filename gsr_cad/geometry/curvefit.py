@@ -19,13 +19,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.linalg as sla
 from scipy.interpolate import BSpline
-from scipy.optimize import lsq_linear
+from scipy.optimize import least_squares, lsq_linear
 from scipy.sparse.linalg import splu
 
 from . import bspline
 from .distance import chord_length_params, spline_foot_points
 
 _DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
+_JOINT_POINTS = 120  # joint refinement only for at most this many points (dense Jacobian; sparse data)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,14 +184,15 @@ def _ordered(params: np.ndarray, closed: bool) -> np.ndarray:
 def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
               parametrization: Literal["geometric", "index"] = "geometric", iterations: int = 25,
               lo: np.ndarray | None = None, hi: np.ndarray | None = None, rtol: float = 1e-3,
-              warm_params: np.ndarray | None = None, closed: bool = False) -> CurveFit:
+              warm_params: np.ndarray | None = None, closed: bool = False, joint: bool = False) -> CurveFit:
     """Best control polygon of ``n_ctrl`` points for ordered ``target`` points (``closed``: a periodic curve).
 
     ``index``: parameters evenly spaced (the paper's index-wise correspondence), distances index-wise.
     ``geometric``: parameters refined by foot points until a round improves the RMS distance by less than
     ``rtol`` (or after ``iterations`` rounds); distances are point-to-curve. Parameter correction is
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
-    a third start; the best start after one solve is refined.
+    a third start; the best start after one solve is refined. ``joint``: small problems are then finished by
+    :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
     """
     target = np.asarray(target, dtype=np.float64)
     m = len(target)
@@ -225,7 +227,67 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
             delta = np.mod(delta + 0.5, 1.0) - 0.5
         params = params + step * delta
         step = min(4.0, 1.5 * step)
+    if joint and len(target) <= _JOINT_POINTS:
+        fit = joint_refine(target, fit, degree, lo, hi)
+        if warm_params is not None:  # the joint step finds the basin of its start: also try the cold starts
+            cold = fit_curve(target, n_ctrl, degree, parametrization, iterations, lo, hi, rtol, None, closed, True)
+            fit = cold if cold.rms < fit.rms else fit
     return fit
+
+
+def joint_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.ndarray | None = None,
+                 hi: np.ndarray | None = None, max_evaluations: int = 60) -> CurveFit:
+    """Minimise the squared foot-point distances over control points and parameters together (Levenberg-
+    Marquardt, analytic dense Jacobian): converges where alternating correction creeps (sparse data, true
+    counts). Open curves keep their end points and end parameters. Returns the better of ``fit`` and the
+    result (its parameters re-projected), so the RMS never grows."""
+    p = np.asarray(target, dtype=np.float64)
+    m, dim = p.shape
+    n, closed = len(fit.ctrl), fit.closed
+    inner = slice(0, n) if closed else slice(1, n - 1)
+    free_u = slice(0, m) if closed else slice(1, m - 1)
+    n_free, m_free = len(range(n)[inner]), len(range(m)[free_u])
+    if n_free * dim + m_free >= m * dim:
+        return fit
+    ctrl0 = np.array(fit.ctrl, dtype=np.float64)
+
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ctrl = ctrl0.copy()
+        ctrl[inner] = x[:n_free * dim].reshape(n_free, dim)
+        u = np.array(fit.params, dtype=np.float64)
+        u[free_u] = x[n_free * dim:]
+        return ctrl, (np.mod(u, 1.0) if closed else np.clip(u, 0.0, 1.0))
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        ctrl, u = unpack(x)
+        return (bspline.make_spline(ctrl, degree, closed)(u) - p).ravel()
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        ctrl, u = unpack(x)
+        cols, vals = _rows(n, u, degree, closed)
+        basis = _dense_basis(cols, vals, n)[:, inner]  # (m, n_free)
+        jac = np.zeros((m, dim, n_free * dim + m_free))
+        for k in range(dim):
+            jac[:, k, k:n_free * dim:dim] = basis
+        tangent = bspline.make_spline(ctrl, degree, closed)(u, 1)
+        rows = np.arange(m)[free_u]
+        jac[rows, :, n_free * dim + np.arange(m_free)] = tangent[rows]
+        return jac.reshape(m * dim, -1)
+
+    x0 = np.concatenate([ctrl0[inner].ravel(), np.asarray(fit.params, dtype=np.float64)[free_u]])
+    try:
+        sol = least_squares(residual, x0, jac=jacobian, method="lm", max_nfev=max_evaluations, xtol=1e-15,
+                            ftol=1e-15, gtol=1e-15)
+    except (ValueError, np.linalg.LinAlgError):
+        return fit
+    ctrl, u = unpack(sol.x)
+    if not np.all(np.isfinite(ctrl)) or (lo is not None and hi is not None and (np.any(ctrl < lo) or
+                                                                                np.any(ctrl > hi))):
+        return fit
+    u = u if closed else np.maximum.accumulate(u)
+    params, dist = _project(ctrl, p, u, degree, closed)
+    out = CurveFit(ctrl, params, dist, closed)
+    return out if out.rms < fit.rms else fit
 
 
 def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iterations: int = 30,

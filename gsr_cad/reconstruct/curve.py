@@ -110,7 +110,8 @@ class CurveProblem:
         limit = config.max_distance * (0.9 if subsampled else 0.97) if config.max_distance else None
         cand = np.searchsorted(prep.search, prep.candidates)
         self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
-                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle])
+                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle],
+                                full=prep.points if subsampled else None, search=prep.search)
         self.limit = limit
         self._sites = self.points[cand] if cand.size else np.zeros((0, self.points.shape[1]))
         self._site_tree = cKDTree(self._sites) if cand.size else None
@@ -266,6 +267,10 @@ class CurveProblem:
                         break
                 else:
                     break
+            if best_n - low <= 40:  # the walk can climb past a lower minimum (the true count): scan below it
+                for cand in range(low, best_n):
+                    if (c := self.structure_cost(corners, cand)) < best_cost:
+                        best_n, best_cost = cand, c
             out = (best_cost, best_n)
         self._best_structures[corners] = out
         return out
@@ -347,8 +352,8 @@ class CurveProblem:
         """Control points, their corners, and the structure (search corners, counts) of the winner.
 
         Without a limit the placement is refined to convergence. With one, the curve is checked on all points
-        (both ways) and segments that miss get more control points, or, once at their most, are fitted to
-        the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
+        (both ways) and segments that miss get more control points (5 %, doubling each round), or, once at their
+        most, are fitted to the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
         search's placement as it is (no refinement, no check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
@@ -368,7 +373,7 @@ class CurveProblem:
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
         limit = self.config.max_distance * self.diag
         grown, best = list(counts), None
-        for _ in range(8):
+        for rnd in range(8):
             ctrl, idx = self.model.assemble(corners, tuple(grown))
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
@@ -383,8 +388,12 @@ class CurveProblem:
             changed = False
             for i in self._segments_of(keys, np.unique(np.searchsorted(self.prepared.search, bad))):
                 key, top = keys[i], self.model.max_count(keys[i])
-                if grown[i] < top:
-                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20))
+                if self.model.use_all(key):  # the search's subsample misses between its points: fit them all
+                    self.model.bound(key, grown[i])
+                    grown[i] = self.model.need(key, self.limit)
+                    changed = True
+                elif grown[i] < top:
+                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * 2 ** rnd)  # faster if it persists
                     changed = True
                 elif self.model.densify(key):
                     grown[i] = self.model.need(key, self.limit)

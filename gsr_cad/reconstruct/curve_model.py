@@ -51,7 +51,7 @@ class CurveModel:
 
     def __init__(self, points: np.ndarray, closed: bool, candidates: np.ndarray, config: CurveConfig,
                  degree: int, diag: float, limit: float | None, lo: np.ndarray, hi: np.ndarray,
-                 sharp: np.ndarray | None = None):
+                 sharp: np.ndarray | None = None, full: np.ndarray | None = None, search: np.ndarray | None = None):
         self.points, self.closed, self.config, self.degree = points, closed, config, degree
         self.sharp = np.zeros(0, dtype=np.int64) if sharp is None else np.asarray(sharp, dtype=np.int64)
         self.candidates = np.asarray(candidates, dtype=np.int64)
@@ -60,6 +60,8 @@ class CurveModel:
         self._fits: dict[tuple[Key, int], SegmentFit] = {}
         self._models: dict[Key, np.ndarray] = {}
         self._densified: set[Key] = set()  # segments fitted to their data model (the limit was out of reach)
+        self.full, self.search = full, search  # all the data, and the search points' indices into them
+        self._all: set[Key] = set()  # segments fitted to all their data points (see use_all)
         self._need: dict[Key, int] = {}
         self._lower: dict[Key, int] = {}  # proven lower bounds of need()
         self.upto: int | None = None  # the best known total: segments needing more are not searched further
@@ -77,9 +79,31 @@ class CurveModel:
         return list(zip(ends[:-1], ends[1:]))
 
     def segment_points(self, key: Key) -> np.ndarray:
+        """The segment's search points, or all its data points once :meth:`use_all` was called for it."""
+        if key in self._all:
+            return self.full[self._full_range(key)]
         if key == PERIODIC:
             return self.points
         return self.points[np.arange(key[0], key[1] + 1) % self.m]
+
+    def _full_range(self, key: Key) -> np.ndarray:
+        """Indices into :attr:`full` of the data points of segment ``key`` (its ends included)."""
+        total = len(self.full)
+        if key == PERIODIC:
+            return np.arange(total)
+        a = int(self.search[key[0] % self.m])
+        b = int(self.search[key[1] % self.m]) + (total if key[1] >= self.m else 0)
+        return np.arange(a, b + 1) % total
+
+    def use_all(self, key: Key) -> bool:
+        """Fit segment ``key`` to all its data points from now on (a subsampled search missed between its
+        points); False when there is nothing more to use."""
+        if self.full is None or key in self._all or len(self._full_range(key)) <= len(self.segment_points(key)):
+            return False
+        self._all.add(key)
+        self._densified.discard(key)
+        self._forget(key)
+        return True
 
     def min_count(self, key: Key) -> int:
         """One span per segment; a closed curve with a single corner needs one point more (it wraps)."""
@@ -90,7 +114,7 @@ class CurveModel:
     def max_count(self, key: Key) -> int:
         """No fixed cap below what the data can support: two thirds of the segment's points (nearer to
         interpolation the placement is ill-posed), or the user's cap."""
-        size = self.m if key == PERIODIC else key[1] - key[0] + 1
+        size = len(self.segment_points(key))
         if key in self._densified:
             size *= 4
         cap = max(self.degree + 1, (2 * size) // 3)
@@ -99,6 +123,9 @@ class CurveModel:
     def _inner_candidates(self, key: Key) -> np.ndarray:
         """Corner candidates inside segment ``key``, as indices into :meth:`segment_points`: the data's model is
         sharp there whether or not the curve makes them corners (as in the final check on all points)."""
+        if key in self._all:
+            where = self._full_range(key)
+            return np.flatnonzero(np.isin(where, self.search[self.candidates]))
         if key == PERIODIC:
             return self.candidates
         rel = np.mod(self.candidates - key[0], self.m)
@@ -128,10 +155,11 @@ class CurveModel:
             near = [c for (k, c) in self._fits if k == key and c < n]
             warm = self._fits[(key, max(near))].fit.params if near else None
         # Parameter correction converges linearly, slowest on sparse data; small segments are cheap, so they
-        # get four times the rounds (an unconverged fit of the true count would lose to more points).
+        # get four times the rounds and, without a limit (where the count is the BIC's), a joint step (an
+        # unconverged fit of the true count would lose to more points).
         rounds = self.config.fit_iterations * (4 if len(pts) <= 400 else 1)
         fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
-                        hi=self.hi, warm_params=warm, closed=closed)
+                        hi=self.hi, warm_params=warm, closed=closed, joint=self.limit is None)
         limit = self.limit
         if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
             fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi,  # a tolerance is a maximum
@@ -175,6 +203,10 @@ class CurveModel:
     # --- counts ----------------------------------------------------------------------------------------------
     def meets(self, key: Key, n: int, limit: float) -> bool:
         return self.fit(key, n).both_max / self.diag <= limit
+
+    def bound(self, key: Key, n: int) -> None:
+        """Take ``n`` as a lower bound of segment ``key``'s need (e.g. the count that missed on fewer points)."""
+        self._lower[key] = max(self._lower.get(key, 0), int(n))
 
     def need(self, key: Key, limit: float, upto: int | None = None) -> int:
         """Fewest control points meeting ``limit`` both ways (the most allowed when none does).
@@ -236,12 +268,16 @@ class CurveModel:
         if key in self._densified:
             return False
         self._densified.add(key)
+        self._forget(key)
+        return True
+
+    def _forget(self, key: Key) -> None:
         for stale in [fk for fk in self._fits if fk[0] == key]:
             del self._fits[stale]
+        self._models.pop(key, None)
         self._lower.pop(key, None)
         self._need.pop(key, None)
         self._alloc.clear()
-        return True
 
     def _spans_sharp(self, key: Key) -> bool:
         """Whether a sharp candidate (turning twice the corner angle) lies strictly inside the segment: smoothing
