@@ -27,6 +27,7 @@ from .distance import chord_length_params, spline_foot_points
 
 _DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
 _JOINT_POINTS = 120  # joint refinement only for at most this many points (dense Jacobian; sparse data)
+_JOINT_RMS = 2e-3  # ... and near-exact data (RMS below this fraction of the diagonal): noisy fits gain nothing
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,8 +192,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
     ``geometric``: parameters refined by foot points until a round improves the RMS distance by less than
     ``rtol`` (or after ``iterations`` rounds); distances are point-to-curve. Parameter correction is
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
-    a third start; the best start after one solve is refined. ``joint``: small problems are then finished by
-    :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
+    a third start; the best start after one solve is refined. ``joint``: small near-exact problems are then finished
+    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
     """
     target = np.asarray(target, dtype=np.float64)
     m = len(target)
@@ -227,7 +228,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
             delta = np.mod(delta + 0.5, 1.0) - 0.5
         params = params + step * delta
         step = min(4.0, 1.5 * step)
-    if joint and len(target) <= _JOINT_POINTS:
+    diag = float(np.linalg.norm(np.ptp(target, axis=0)))
+    if joint and len(target) <= _JOINT_POINTS and fit.rms <= _JOINT_RMS * diag:
         fit = joint_refine(target, fit, degree, lo, hi)
         if warm_params is not None:  # the joint step finds the basin of its start: also try the cold starts
             cold = fit_curve(target, n_ctrl, degree, parametrization, iterations, lo, hi, rtol, None, closed, True)

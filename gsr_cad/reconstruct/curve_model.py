@@ -154,10 +154,10 @@ class CurveModel:
         if self.config.fitness == "geometric":
             near = [c for (k, c) in self._fits if k == key and c < n]
             warm = self._fits[(key, max(near))].fit.params if near else None
-        # Parameter correction converges linearly, slowest on sparse data; small segments are cheap, so they
-        # get four times the rounds and, without a limit (where the count is the BIC's), a joint step (an
-        # unconverged fit of the true count would lose to more points).
-        rounds = self.config.fit_iterations * (4 if len(pts) <= 400 else 1)
+        # Parameter correction converges linearly, slowest on sparse data; without a limit (where the count is
+        # the BIC's) small segments get four times the rounds and a joint step (an unconverged fit of the true
+        # count would lose to more points). With a limit the minimax step follows instead.
+        rounds = self.config.fit_iterations * (4 if len(pts) <= 400 and self.limit is None else 1)
         fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
                         hi=self.hi, warm_params=warm, closed=closed, joint=self.limit is None)
         limit = self.limit
@@ -230,8 +230,23 @@ class CurveModel:
             self._need[key] = lo
             return lo
         bad, n = max(lo, bound - 1), max(lo, bound - 1)
-        while True:  # grow by half until met, then bisect between the last miss and the first hit
-            n = min(top, max(n + 1, int(math.ceil(n * 1.5))))
+        guess = self._guess(key)
+        step = 0
+        if guess is not None and bad < guess < (top if upto is None else upto):
+            # A merge of two segments needs about what its parts needed together: gallop from there.
+            if self.meets(key, guess, limit):
+                good, gap = guess, 1
+                while good - gap > bad:
+                    if not self.meets(key, good - gap, limit):
+                        bad = good - gap
+                        break
+                    good, gap = good - gap, 2 * gap
+                return self._bisect(key, limit, bad, good)
+            bad = n = guess
+            step = 1
+        while True:  # grow by half (or gallop from a guess) until met, then bisect between miss and hit
+            n = min(top, n + step if step else max(n + 1, int(math.ceil(n * 1.5))))
+            step *= 2
             if upto is not None and n > upto:
                 if bad < upto and not self.meets(key, upto, limit):
                     bad = upto
@@ -252,7 +267,10 @@ class CurveModel:
                 best = min(tried, key=lambda c: (self._fits[(key, c)].both_max, c))
                 self._need[key] = best
                 return best
-        good = n
+        return self._bisect(key, limit, bad, n)
+
+    def _bisect(self, key: Key, limit: float, bad: int, good: int) -> int:
+        """The fewest count in ``(bad, good]`` meeting ``limit`` (``good`` does, ``bad`` does not), remembered."""
         while good - bad > 1:
             mid = (good + bad) // 2
             if self.meets(key, mid, limit):
@@ -261,6 +279,16 @@ class CurveModel:
                 bad = mid
         self._need[key] = good
         return good
+
+    def _guess(self, key: Key) -> int | None:
+        """The counts two known segments that make up ``key`` needed together (they share a point), if any."""
+        if key == PERIODIC or key in self._all:
+            return None
+        a, c = key
+        for (k0, k1), n0 in self._need.items():
+            if k0 == a and k1 < c and (k1, c) in self._need:
+                return n0 + self._need[(k1, c)] - 1
+        return None
 
     def densify(self, key: Key) -> bool:
         """Fit segment ``key`` to its data model's samples from now on (the points alone are too coarse for the
