@@ -11,8 +11,9 @@ template. Two evaluations are offered:
   structure - its number of points ``n`` and its corners, each matched to the nearest candidate - is scored
   after the least-squares placement of its control points, segment by segment between corners (see
   :mod:`gsr_cad.reconstruct.curve_model`), with errors measured both ways (data -> curve and curve -> data).
-  The cost ``exp(2 n ln m / m) * max(rms / diag, tolerance, excursion)^2`` is the exponential of a BIC per
-  sample: exact data get their exact count back and noisy data are not over-fitted. With ``max_distance`` X
+  The cost ``exp(2 (n + 2 corners) ln m / m) * max(rms / diag, tolerance, excursion)^2`` is the exponential
+  of a BIC per sample (a corner frees two continuity conditions): exact data get their exact count back and
+  noisy data are not over-fitted, nor given corners by their noise. With ``max_distance`` X
   the floor is X and structures missing X (both ways) are penalised, so the count is the fewest that meets
   X. The memetic step searches corner sets and counts around the best genome; the winner's placement is
   written back into its history (insertions at their final positions, ``move_point`` ops for the template's
@@ -106,8 +107,9 @@ class CurveProblem:
         self._trie: dict = {}
         self._trie_size = 0
         subsampled = len(self.points) < len(prep.points)
-        # The search samples the curve more coarsely than the final check (and maybe fewer points): a margin.
-        limit = config.max_distance * (0.9 if subsampled else 0.97) if config.max_distance else None
+        # The search samples the curve more coarsely than the final check: a margin (segments a subsampled
+        # search gets wrong are refitted on all their points by the final check).
+        limit = config.max_distance * 0.97 if config.max_distance else None
         cand = np.searchsorted(prep.search, prep.candidates)
         self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
                                 self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle],
@@ -194,9 +196,10 @@ class CurveProblem:
             low = self.model.minimum_total(corners)
             return 1e15 if low is None else 1e12 * (1.0 + abs(low - n))
         rms, both, excess = self.model.errors(corners, counts)
-        grow = math.exp(2.0 * n * math.log(self.m) / self.m)
-        if self.limit is None:
+        if self.limit is None:  # a C0 corner frees two continuity conditions: two parameters more in the BIC
+            grow = math.exp(2.0 * (n + 2 * len(corners)) * math.log(self.m) / self.m)
             return grow * max(rms, self.config.tolerance, excess) ** 2
+        grow = math.exp(2.0 * n * math.log(self.m) / self.m)
         cost = grow * max(rms, self.config.tolerance, self.limit) ** 2 * (1.0 + 1e-3 * rms / self.limit)
         if both > self.limit:
             cost *= 1e6 * (both / self.limit) ** 2  # infeasible: worse, and graded by the miss
