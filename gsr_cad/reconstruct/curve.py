@@ -18,7 +18,9 @@ template. Two evaluations are offered:
   X. The memetic step searches corner sets and counts around the best genome; the winner's placement is
   written back into its history (insertions at their final positions, ``move_point`` ops for the template's
   points, then ``corner`` ops), so the saved genome replays exactly to the result. With X the final curve is
-  checked on all points; a miss is reported in ``metrics["tolerance_met"]``.
+  checked on all points, both ways; segments that miss get more control points where the residual is (refitted
+  on all their points when the search saw a subsample, or on the data's model when the points alone are too
+  coarse); a remaining miss is reported in ``metrics["tolerance_met"]``.
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ curve -> data (curve samples per span and between neighbouring foot points, agai
 so a curve cannot make a loop or bridge a gap far from the data.
 
 With a max-distance tolerance ``X`` each segment gets the fewest control points whose two-sided max
-distance is within ``X`` (exponential then bisection search, no fixed cap below the segment's point count);
+distance is within ``X`` (exponential then bisection search, or a gallop from its parts' counts for a merged
+segment; no fixed cap below the segment's point count; the data's model is sharp at every corner candidate);
 without one, points go one at a time to the segment whose squared error drops most and the total count
 minimises the BIC-like cost of :mod:`gsr_cad.reconstruct.curve`.
 """
