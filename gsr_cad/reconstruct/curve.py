@@ -378,6 +378,11 @@ class CurveProblem:
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
         limit = self.config.max_distance * self.diag
         grown, best = list(counts), None
+        owner = np.zeros(self.m, dtype=np.int64)  # the segment of each search point
+        for i, (a, b) in enumerate(keys):
+            if (a, b) != (-1, -1):
+                owner[np.arange(a, b + 1) % self.m] = i
+        last_err, last_count, frozen = np.zeros(len(keys)), list(counts), set()
         for rnd in range(8):
             ctrl, idx = self.model.assemble(corners, tuple(grown))
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
@@ -387,18 +392,30 @@ class CurveProblem:
             if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
                 best = (worst, ctrl, idx, tuple(grown))
             bad = np.flatnonzero(there > limit)
-            bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
-            if not bad.size:
+            far = back > limit
+            if not bad.size and not far.any():
                 break
+            where = np.concatenate([bad, tree.query(samples[far])[1]]).astype(np.int64)
+            errors = np.concatenate([there[bad], back[far]])
+            seg_err = np.zeros(len(keys))
+            np.maximum.at(seg_err, owner[np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)], errors)
             changed = False
-            for i in self._segments_of(keys, np.unique(np.searchsorted(self.prepared.search, bad))):
+            for i in np.flatnonzero(seg_err > limit):
                 key, top = keys[i], self.model.max_count(keys[i])
+                if i in frozen:
+                    continue
+                if seg_err[i] > last_err[i] > 0.0:  # its growth made it worse (an overfit): back, and keep it
+                    grown[i] = last_count[i]
+                    frozen.add(i)
+                    changed = True
+                    continue
+                last_err[i], last_count[i] = seg_err[i], grown[i]
                 if self.model.use_all(key):  # the search's subsample misses between its points: fit them all
                     self.model.bound(key, grown[i])
                     grown[i] = self.model.need(key, self.limit)
                     changed = True
                 elif grown[i] < top:
-                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * 2 ** rnd)  # faster if it persists
+                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * min(2 ** rnd, 4))  # faster if it persists
                     changed = True
                 elif self.model.densify(key):
                     grown[i] = self.model.need(key, self.limit)
@@ -407,15 +424,6 @@ class CurveProblem:
                 break
         _, ctrl, idx, counts = best
         return ctrl, idx, corners, counts
-
-    def _segments_of(self, keys: list, positions: np.ndarray) -> list[int]:
-        """Indices of the segments (``keys``) holding any of the search ``positions``."""
-        pos = np.asarray(positions, dtype=np.int64).clip(0, self.m - 1)
-        hit = []
-        for i, (a, b) in enumerate(keys):
-            if (a, b) == (-1, -1) or np.any(((pos >= a) & (pos <= b)) | ((pos + self.m >= a) & (pos + self.m <= b))):
-                hit.append(i)
-        return hit
 
 
 def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,
