@@ -162,3 +162,24 @@ def test_a_million_points_in_under_a_minute():
         result = reconstruct_curve(pts, seed=0, max_distance=1e-4)
     assert time.process_time() - start < 60.0
     assert result.metrics["tolerance_met"] and result.metrics["search_points"] < 10_000
+
+
+def test_subsample_has_no_near_duplicates():
+    from gsr_cad.geometry.curveprep import subsample
+
+    th = np.linspace(0, 2 * np.pi, 50_000, endpoint=False)
+    keep = np.array([123, 40_000])
+    for aspect, (low, high) in ((1.0, (2900, 3100)), (0.5, (1500, 3100))):  # evenly / unevenly spaced by arc
+        pts = np.column_stack([np.cos(th), aspect * np.sin(th)])
+        idx = subsample(pts, 3000, keep, closed=True)
+        assert set(keep.tolist()) <= set(idx.tolist()) and low <= len(idx) <= high
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        close = np.flatnonzero(np.diff(arc[idx]) < 0.25 * arc[-1] / 1500 - 1e-12)
+        assert np.isin(idx[close + 1], keep).all() or np.isin(idx[close], keep).all()
+
+
+def test_tolerance_stall_generations_is_validated():
+    from gsr_cad.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="tolerance-stall-generations"):
+        reconstruct_curve(ellipse(), seed=0, max_distance=1e-3, tolerance_stall_generations=-1, **FAST)

@@ -12,18 +12,22 @@ systems (many control points) are solved through their sparse banded normal equa
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.linalg as sla
-from scipy.optimize import lsq_linear
+from scipy.interpolate import BSpline
+from scipy.optimize import least_squares, lsq_linear
 from scipy.sparse.linalg import splu
 
 from . import bspline
 from .distance import chord_length_params, spline_foot_points
 
 _DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
+_JOINT_POINTS = 120  # joint refinement only for at most this many points (dense Jacobian; sparse data)
+_JOINT_RMS = 2e-3  # ... and near-exact data (RMS below this fraction of the diagonal): noisy fits gain nothing
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,30 +44,91 @@ class CurveFit:
         return float(np.sqrt(np.mean(self.distances ** 2)))
 
 
-def _solve(a: sp.csr_array, rhs: np.ndarray) -> np.ndarray:
-    """Least squares ``a x = rhs`` for a sparse B-spline basis ``a``, through its normal equations.
+def _rows(n_ctrl: int, params: np.ndarray, degree: int, closed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The basis as ``(columns, values)``, both ``(m, degree + 1)``: each row's nonzero basis functions (closed:
+    columns taken modulo ``n_ctrl``). Straight from SciPy's design matrix, which stores ``degree + 1`` per row."""
+    t = bspline._form_knots(n_ctrl, degree, bool(closed), ())
+    x = np.mod(params, 1.0) if closed else bspline._check_params(params)
+    design = BSpline.design_matrix(x, t, degree)
+    cols = design.indices.reshape(-1, degree + 1).astype(np.int64)
+    vals = np.asarray(design.data, dtype=np.float64).reshape(-1, degree + 1)
+    return (cols % n_ctrl if closed else cols), vals
 
-    The normal matrix is banded and built sparse (no multi-threaded BLAS on tall matrices, which costs more
-    than it saves on a shared machine); small systems are factored densely by Cholesky, large ones by sparse
-    LU. One refinement step on the residual recovers the accuracy the squared condition number costs. An
-    SVD solve covers a singular normal matrix (fewer data than unknowns).
+
+def _normal(cols: np.ndarray, vals: np.ndarray, rhs: np.ndarray, n: int, dense: bool
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Normal matrix and right-hand side of a basis given row-wise: the matrix dense ``(n, n)``, or as its band
+    ``(2 degree + 1, n)`` with ``band[degree + d, i] = N[i, (i + d) mod n]``."""
+    k1 = cols.shape[1]
+    k = k1 - 1
+    atb = _transpose_product(cols, vals, rhs, n)
+    ca = np.repeat(cols, k1, axis=1).ravel()
+    cb = np.tile(cols, (1, k1)).ravel()
+    w = (vals[:, :, None] * vals[:, None, :]).ravel()
+    if dense:
+        return np.bincount(ca * n + cb, w, n * n).reshape(n, n), atb
+    d = np.mod(cb - ca + k, n)  # n > 2 k + 1 here: offsets -k..k do not alias
+    return np.bincount(d * n + ca, w, (2 * k + 1) * n).reshape(2 * k + 1, n), atb
+
+
+def _transpose_product(cols: np.ndarray, vals: np.ndarray, rhs: np.ndarray, n: int) -> np.ndarray:
+    """``A.T @ rhs`` for a basis ``A`` given row-wise."""
+    return np.column_stack([np.bincount(cols.ravel(), (vals * rhs[:, d:d + 1]).ravel(), n)
+                            for d in range(rhs.shape[1])])
+
+
+def _band_solver(band: np.ndarray, lo: int, hi: int, closed: bool) -> Callable[[np.ndarray], np.ndarray]:
+    """A solver for the unknowns ``lo..hi-1`` of a banded normal matrix (closed: cyclic band, sparse LU; open:
+    banded Cholesky)."""
+    k = band.shape[0] // 2
+    n = band.shape[1]
+    if not closed:
+        upper = np.zeros((k + 1, hi - lo))
+        for d in range(k + 1):  # solveh_banded's upper form: ab[k - d, j] = N[j - d, j]
+            upper[k - d, d:] = band[k + d, lo:hi - d]
+        upper[k] += 1e-14 * float(np.abs(upper[k]).max())
+        factor = sla.cholesky_banded(upper, check_finite=False)
+        return lambda b: sla.cho_solve_banded((factor, False), b, check_finite=False)
+    rows = np.tile(np.arange(n), 2 * k + 1)
+    cols = np.mod(rows + np.repeat(np.arange(-k, k + 1), n), n)
+    mat = sp.csc_matrix((band.ravel(), (rows, cols)), shape=(n, n))
+    mat = mat + sp.identity(n, format="csc") * (1e-14 * float(np.abs(band[k]).max()))
+    return splu(sp.csc_matrix(mat)).solve
+
+
+def _solve_rows(cols: np.ndarray, vals: np.ndarray, rhs: np.ndarray, n: int, closed: bool) -> np.ndarray:
+    """Least squares for the unknowns of a row-wise basis: all of them (closed), or all but the two ends (open;
+    their columns' values already zeroed).
+
+    Normal equations built directly from the rows (no sparse products): factored densely by Cholesky up to
+    ``_DENSE_COLUMNS`` unknowns, as a band above; one refinement step on the residual recovers the accuracy the
+    squared condition number costs. A singular system (fewer data than unknowns) falls back to an SVD solve.
     """
-    ata = sp.csc_matrix(a.T @ a)
-    atb = np.asarray(a.T @ rhs)
+    k = cols.shape[1] - 1
+    lo, hi = (0, n) if closed else (1, n - 1)
+    dense = n <= max(_DENSE_COLUMNS, 2 * k + 2)
+    ata, atb = _normal(cols, vals, rhs, n, dense)
     try:
-        if ata.shape[0] <= _DENSE_COLUMNS:
-            factor = sla.cho_factor(ata.toarray(), check_finite=False)
+        if dense:
+            factor = sla.cho_factor(ata[lo:hi, lo:hi], check_finite=False)
             solve = lambda b: sla.cho_solve(factor, b, check_finite=False)  # noqa: E731
         else:
-            lu = splu(ata + sp.identity(ata.shape[0], format="csc") * (1e-14 * float(abs(ata.diagonal()).max())))
-            solve = lu.solve
-        x = solve(atb)
-        x += solve(np.asarray(a.T @ (rhs - a @ x)))
-    except (np.linalg.LinAlgError, RuntimeError):
-        x = np.full(atb.shape, np.nan)
-    if not np.all(np.isfinite(x)):
-        return np.linalg.lstsq(a.toarray(), rhs, rcond=None)[0]
-    return x
+            solve = _band_solver(ata, lo, hi, closed)
+        x = np.zeros((n, rhs.shape[1]))
+        x[lo:hi] = solve(atb[lo:hi])
+        resid = rhs - np.einsum("ij,ijd->id", vals, x[cols])
+        x[lo:hi] += solve(_transpose_product(cols, vals, resid, n)[lo:hi])
+    except (np.linalg.LinAlgError, RuntimeError, ValueError):
+        x = np.full((n, rhs.shape[1]), np.nan)
+    if not np.all(np.isfinite(x[lo:hi])):
+        return np.linalg.lstsq(_dense_basis(cols, vals, n)[:, lo:hi], rhs, rcond=None)[0]
+    return x[lo:hi]
+
+
+def _dense_basis(cols: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
+    full = np.zeros((len(cols), n))
+    np.add.at(full, (np.repeat(np.arange(len(cols)), cols.shape[1]), cols.ravel()), vals.ravel())
+    return full
 
 
 def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: int,
@@ -75,22 +140,21 @@ def solve_interior(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: 
     When ``lo``/``hi`` are given and the unconstrained optimum of a small system leaves that box, a bounded
     solve (scipy's ``lsq_linear``) keeps every point inside it, so the result stays a valid op target.
     """
-    basis = bspline.form_design(n_ctrl, params, degree, closed=closed)
-    if closed:
-        inner, rhs = basis, np.array(target, dtype=np.float64)
-    else:
-        col = basis.tocsc()
-        first, last = col[:, [0]].toarray(), col[:, [n_ctrl - 1]].toarray()
-        rhs = target - first * target[0] - last * target[-1]
-        inner = sp.csr_array(col[:, 1:-1])
+    target = np.asarray(target, dtype=np.float64)
+    cols, vals = _rows(n_ctrl, params, degree, closed)
+    rhs = target.copy()
+    if not closed:
+        for end, point in ((0, target[0]), (n_ctrl - 1, target[-1])):
+            hit = cols == end
+            rhs -= (vals * hit).sum(axis=1)[:, None] * point[None, :]
+            vals = np.where(hit, 0.0, vals)
     if weights is not None:
-        root = np.sqrt(weights)
-        inner = sp.csr_array(sp.diags_array(root) @ inner)
+        root = np.sqrt(np.asarray(weights, dtype=np.float64))
+        vals = vals * root[:, None]
         rhs = rhs * root[:, None]
-    sol = _solve(inner, rhs)
-    small = inner.shape[1] <= _DENSE_COLUMNS
-    if small and lo is not None and hi is not None and (np.any(sol < lo) or np.any(sol > hi)):
-        dense = inner.toarray()
+    sol = _solve_rows(cols, vals, rhs, n_ctrl, closed)
+    if len(sol) <= _DENSE_COLUMNS and lo is not None and hi is not None and (np.any(sol < lo) or np.any(sol > hi)):
+        dense = _dense_basis(cols, vals, n_ctrl)[:, (0 if closed else 1):(n_ctrl if closed else n_ctrl - 1)]
         sol = np.column_stack([
             lsq_linear(dense, rhs[:, k], bounds=(lo[k], hi[k]), method="bvls").x for k in range(rhs.shape[1])
         ])
@@ -121,14 +185,15 @@ def _ordered(params: np.ndarray, closed: bool) -> np.ndarray:
 def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
               parametrization: Literal["geometric", "index"] = "geometric", iterations: int = 25,
               lo: np.ndarray | None = None, hi: np.ndarray | None = None, rtol: float = 1e-3,
-              warm_params: np.ndarray | None = None, closed: bool = False) -> CurveFit:
+              warm_params: np.ndarray | None = None, closed: bool = False, joint: bool = False) -> CurveFit:
     """Best control polygon of ``n_ctrl`` points for ordered ``target`` points (``closed``: a periodic curve).
 
     ``index``: parameters evenly spaced (the paper's index-wise correspondence), distances index-wise.
     ``geometric``: parameters refined by foot points until a round improves the RMS distance by less than
     ``rtol`` (or after ``iterations`` rounds); distances are point-to-curve. Parameter correction is
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
-    a third start; the best start after one solve is refined.
+    a third start; the best start after one solve is refined. ``joint``: small near-exact problems are then finished
+    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
     """
     target = np.asarray(target, dtype=np.float64)
     m = len(target)
@@ -144,7 +209,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
              for p in starts]
     params, dist = min(first, key=lambda pd: float(np.sum(pd[1] ** 2)))
     fit: CurveFit | None = None
-    for _ in range(max(1, iterations)):
+    step = 1.0  # over-relaxation of the parameter update: correction creeps along the curve, so steps that
+    for _ in range(max(1, iterations)):  # keep improving grow; a step that does not is retried plainly
         params = _ordered(params, closed)
         ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, closed=closed)
         new_params, dist = _project(ctrl, target, params, degree, closed)
@@ -153,22 +219,91 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
         if fit is None or candidate.rms < fit.rms:
             fit = candidate
         if not improved:
-            break
-        params = new_params
+            if step == 1.0:
+                break
+            step, params = 1.0, fit.params
+            continue
+        delta = new_params - params
+        if closed:
+            delta = np.mod(delta + 0.5, 1.0) - 0.5
+        params = params + step * delta
+        step = min(4.0, 1.5 * step)
+    diag = float(np.linalg.norm(np.ptp(target, axis=0)))
+    if joint and len(target) <= _JOINT_POINTS and fit.rms <= _JOINT_RMS * diag:
+        fit = joint_refine(target, fit, degree, lo, hi)
+        if warm_params is not None:  # the joint step finds the basin of its start: also try the cold starts
+            cold = fit_curve(target, n_ctrl, degree, parametrization, iterations, lo, hi, rtol, None, closed, True)
+            fit = cold if cold.rms < fit.rms else fit
     return fit
 
 
+def joint_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.ndarray | None = None,
+                 hi: np.ndarray | None = None, max_evaluations: int = 60) -> CurveFit:
+    """Minimise the squared foot-point distances over control points and parameters together (Levenberg-
+    Marquardt, analytic dense Jacobian): converges where alternating correction creeps (sparse data, true
+    counts). Open curves keep their end points and end parameters. Returns the better of ``fit`` and the
+    result (its parameters re-projected), so the RMS never grows."""
+    p = np.asarray(target, dtype=np.float64)
+    m, dim = p.shape
+    n, closed = len(fit.ctrl), fit.closed
+    inner = slice(0, n) if closed else slice(1, n - 1)
+    free_u = slice(0, m) if closed else slice(1, m - 1)
+    n_free, m_free = len(range(n)[inner]), len(range(m)[free_u])
+    if n_free * dim + m_free >= m * dim:
+        return fit
+    ctrl0 = np.array(fit.ctrl, dtype=np.float64)
+
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ctrl = ctrl0.copy()
+        ctrl[inner] = x[:n_free * dim].reshape(n_free, dim)
+        u = np.array(fit.params, dtype=np.float64)
+        u[free_u] = x[n_free * dim:]
+        return ctrl, (np.mod(u, 1.0) if closed else np.clip(u, 0.0, 1.0))
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        ctrl, u = unpack(x)
+        return (bspline.make_spline(ctrl, degree, closed)(u) - p).ravel()
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        ctrl, u = unpack(x)
+        cols, vals = _rows(n, u, degree, closed)
+        basis = _dense_basis(cols, vals, n)[:, inner]  # (m, n_free)
+        jac = np.zeros((m, dim, n_free * dim + m_free))
+        for k in range(dim):
+            jac[:, k, k:n_free * dim:dim] = basis
+        tangent = bspline.make_spline(ctrl, degree, closed)(u, 1)
+        rows = np.arange(m)[free_u]
+        jac[rows, :, n_free * dim + np.arange(m_free)] = tangent[rows]
+        return jac.reshape(m * dim, -1)
+
+    x0 = np.concatenate([ctrl0[inner].ravel(), np.asarray(fit.params, dtype=np.float64)[free_u]])
+    try:
+        sol = least_squares(residual, x0, jac=jacobian, method="lm", max_nfev=max_evaluations, xtol=1e-15,
+                            ftol=1e-15, gtol=1e-15)
+    except (ValueError, np.linalg.LinAlgError):
+        return fit
+    ctrl, u = unpack(sol.x)
+    if not np.all(np.isfinite(ctrl)) or (lo is not None and hi is not None and (np.any(ctrl < lo) or
+                                                                                np.any(ctrl > hi))):
+        return fit
+    u = u if closed else np.maximum.accumulate(u)
+    params, dist = _project(ctrl, p, u, degree, closed)
+    out = CurveFit(ctrl, params, dist, closed)
+    return out if out.rms < fit.rms else fit
+
+
 def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iterations: int = 30,
-                   lo: np.ndarray | None = None, hi: np.ndarray | None = None) -> CurveFit:
+                   lo: np.ndarray | None = None, hi: np.ndarray | None = None, goal: float | None = None) -> CurveFit:
     """Lower the *maximum* distance of a fit (Lawson's iteratively reweighted least squares).
 
     Least squares minimises the RMS; a CAD tolerance is a maximum. Lawson's weights (multiplied by each
     point's current distance) drive the weighted solution toward the minimax one; parameters follow by
-    foot points. Returns the iterate with the smallest maximum distance.
+    foot points. Returns the iterate with the smallest maximum distance, as soon as it is within ``goal`` (when
+    given) or after twelve rounds without a new smallest.
     """
     n_ctrl, closed = len(fit.ctrl), fit.closed
     weights = np.full(len(target), 1.0 / len(target))
-    best, params, dist = fit, fit.params, fit.distances
+    best, params, dist, since = fit, fit.params, fit.distances, 0
     for _ in range(iterations):
         weights = weights * np.maximum(dist, 1e-300)
         total = weights.sum()
@@ -179,5 +314,9 @@ def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iteration
         ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, weights=weights, closed=closed)
         params, dist = _project(ctrl, target, params, degree, closed)
         if dist.max() < best.distances.max():
-            best = CurveFit(ctrl, params, dist, closed)
+            best, since = CurveFit(ctrl, params, dist, closed), 0
+        else:
+            since += 1
+        if (goal is not None and best.distances.max() <= goal) or since >= 12:
+            break
     return best

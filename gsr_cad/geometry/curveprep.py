@@ -152,8 +152,11 @@ def corner_candidates(points: np.ndarray, closed: bool, min_angle: float = 25.0,
     angle = np.minimum(big, small)
     # A corner also shows at the sampling scale: the polyline turns there (at the vertex or a neighbour, by at
     # least 0.4 of the angle), whereas a round nose sampled coarsely turns a little at every vertex.
+    # Densely sampled data (many points per 0.05 % of the length) are judged at that length instead.
     kink = _vertex_turning(p, closed)
-    local = np.maximum(kink, np.maximum(np.roll(kink, 1), np.roll(kink, -1)))
+    fine = 0.0005 * total
+    scale = _turning(p, s, total, fine, closed) if fine > 1.5 * float(np.median(steps)) else kink
+    local = np.maximum(scale, np.maximum(np.roll(scale, 1), np.roll(scale, -1)))
     out = out[local[out] >= 0.4 * angle[out]]
     # Isolated kinks of the polyline itself (e.g. both ends of a short trailing edge, closer than h): a vertex
     # turning >= 60 deg with a neighbour turning less than a third of that (a pixel staircase turns at every step).
@@ -191,5 +194,15 @@ def subsample(points: np.ndarray, limit: int, keep: np.ndarray, closed: bool) ->
     s = np.concatenate([[0.0], np.cumsum(steps)])
     by_index = np.round(np.linspace(0, m - 1, limit // 2)).astype(np.int64)
     by_arc = np.searchsorted(s, np.linspace(0.0, s[-1], limit // 2)).clip(0, m - 1)
-    out = np.unique(np.concatenate([by_index, by_arc, np.asarray(keep, dtype=np.int64), [0, m - 1]]))
-    return out
+    if np.count_nonzero(np.abs(np.diff(s[by_index]) - s[-1] / max(1, limit // 2 - 1)) > 0.5 * s[-1] / limit) < limit // 20:
+        by_index = by_arc = np.searchsorted(s, np.linspace(0.0, s[-1], limit)).clip(0, m - 1)  # evenly spaced data
+    keep = np.unique(np.concatenate([np.asarray(keep, dtype=np.int64), [0, m - 1]]))
+    out = np.unique(np.concatenate([by_index, by_arc]))
+    # The two spreads nearly coincide on evenly spaced data: of points closer than a quarter of the arc
+    # spacing only the first is kept (near-duplicates only bend the data's local model), then ``keep``.
+    gap = 0.25 * s[-1] / max(1, len(by_arc))
+    spaced = [out[0]]
+    for i in out[1:]:
+        if s[i] - s[spaced[-1]] >= gap:
+            spaced.append(i)
+    return np.union1d(np.asarray(spaced, dtype=np.int64), keep)

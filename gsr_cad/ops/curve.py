@@ -285,7 +285,7 @@ def random_op(rng: np.random.Generator, polygon: Polygon, p_add: float = 0.5, mo
         raise ConfigError(f"p_add and p_corner must lie in [0, 1], got {p_add!r}, {p_corner!r}")
     if not (math.isfinite(move_scale) and move_scale >= 0.0):
         raise ConfigError(f"move_scale must be a finite number >= 0, got {move_scale!r}")
-    lo, hi = np.asarray(polygon.lo), np.asarray(polygon.hi)
+    lo, hi = polygon.lo, polygon.hi
     n, dim = polygon.n, len(lo)
     if p_corner > 0.0 and corner_sites is not None and len(corner_sites) and rng.random() < p_corner:
         site = np.asarray(corner_sites)[int(rng.integers(len(corner_sites)))]
@@ -293,15 +293,17 @@ def random_op(rng: np.random.Generator, polygon: Polygon, p_add: float = 0.5, mo
     if n < 3 or rng.random() < p_add:
         index = int(rng.integers(1, n))
         if local_add:
-            a, b = polygon.points[index - 1], polygon.points[index]
-            sigma = 0.25 * float(np.linalg.norm(b - a))
-            position = np.clip(0.5 * (a + b) + rng.normal(0.0, sigma, dim), lo, hi)
-        else:
-            position = rng.uniform(lo, hi)
-        return AddPoint(index, _floats(position))
+            a, b = polygon.points[index - 1].tolist(), polygon.points[index].tolist()
+            sigma = 0.25 * math.dist(a, b)
+            noise = rng.standard_normal(dim).tolist()
+            position = tuple(min(max(0.5 * (u + v) + sigma * z, l), h)
+                             for u, v, z, l, h in zip(a, b, noise, lo, hi))
+        else:  # uniform in the box (scalar arithmetic: array-bound draws cost more than the rest of the op)
+            position = tuple(l + (h - l) * r for l, h, r in zip(lo, hi, rng.random(dim).tolist()))
+        return AddPoint(index, position)
     index = int(rng.integers(0, n)) if polygon.closed else int(rng.integers(1, n - 1))
-    s = move_scale * (hi - lo)
-    return MovePoint(index, _floats(rng.uniform(-s, s)))
+    return MovePoint(index, tuple(move_scale * (h - l) * (2.0 * r - 1.0)
+                                  for l, h, r in zip(lo, hi, rng.random(dim).tolist())))
 
 
 def perturb_op(op: Op, rng: np.random.Generator, scale: float) -> Op:

@@ -199,6 +199,10 @@ class CurveConfig:
         3000,
         "The search fits at most about this many of the points (metrics and the tolerance check use all of them); "
         "0: all points.")
+    tolerance_stall_generations: int = _field(
+        3,
+        "With max-distance: generations without improvement that end the search (the structure search already "
+        "gives every segment the fewest points meeting it); 0: stall-generations.")
 
     @classmethod
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:

@@ -11,13 +11,16 @@ template. Two evaluations are offered:
   structure - its number of points ``n`` and its corners, each matched to the nearest candidate - is scored
   after the least-squares placement of its control points, segment by segment between corners (see
   :mod:`gsr_cad.reconstruct.curve_model`), with errors measured both ways (data -> curve and curve -> data).
-  The cost ``exp(2 n ln m / m) * max(rms / diag, tolerance, excursion)^2`` is the exponential of a BIC per
-  sample: exact data get their exact count back and noisy data are not over-fitted. With ``max_distance`` X
+  The cost ``exp(2 (n + 2 corners) ln m / m) * max(rms / diag, tolerance, excursion)^2`` is the exponential
+  of a BIC per sample (a corner frees two continuity conditions): exact data get their exact count back and
+  noisy data are not over-fitted, nor given corners by their noise. With ``max_distance`` X
   the floor is X and structures missing X (both ways) are penalised, so the count is the fewest that meets
   X. The memetic step searches corner sets and counts around the best genome; the winner's placement is
   written back into its history (insertions at their final positions, ``move_point`` ops for the template's
   points, then ``corner`` ops), so the saved genome replays exactly to the result. With X the final curve is
-  checked on all points; a miss is reported in ``metrics["tolerance_met"]``.
+  checked on all points, both ways; segments that miss get more control points where the residual is (refitted
+  on all their points when the search saw a subsample, or on the data's model when the points alone are too
+  coarse); a remaining miss is reported in ``metrics["tolerance_met"]``.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import genome as genome_mod
-from ..errors import OpError
+from ..errors import ConfigError, OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
 from ..geometry import bspline
 from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered, nearest_neighbour_order, subsample
@@ -106,11 +109,13 @@ class CurveProblem:
         self._trie: dict = {}
         self._trie_size = 0
         subsampled = len(self.points) < len(prep.points)
-        # The search samples the curve more coarsely than the final check (and maybe fewer points): a margin.
-        limit = config.max_distance * (0.9 if subsampled else 0.97) if config.max_distance else None
+        # The search samples the curve more coarsely than the final check: a margin (segments a subsampled
+        # search gets wrong are refitted on all their points by the final check).
+        limit = config.max_distance * 0.97 if config.max_distance else None
         cand = np.searchsorted(prep.search, prep.candidates)
         self.model = CurveModel(self.points, self.closed, cand, config, self.degree, self.diag, limit,
-                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle])
+                                self.lo, self.hi, sharp=cand[prep.angles >= 2.0 * config.corner_angle],
+                                full=prep.points if subsampled else None, search=prep.search)
         self.limit = limit
         self._sites = self.points[cand] if cand.size else np.zeros((0, self.points.shape[1]))
         self._site_tree = cKDTree(self._sites) if cand.size else None
@@ -123,8 +128,13 @@ class CurveProblem:
         Genomes grow and are rebuilt gene by gene, so each state is one op applied to a cached parent; the
         trie makes a look-up linear in the genome's length (long histories of real curves have hundreds of ops).
         """
+        return self._walk(prefix)[0]
+
+    def _walk(self, ops: tuple, keep: list | None = None) -> tuple[curve_ops.Polygon, dict]:
+        """Walk ``ops`` through the trie (applying each new op once); ``keep`` collects the valid ones (an add
+        beyond :attr:`max_ctrl` counts as invalid there)."""
         state, children = self.template, self._trie
-        for op in prefix:
+        for op in ops:
             entry = children.get(op)
             if entry is None:
                 try:
@@ -133,10 +143,15 @@ class CurveProblem:
                     nxt = state
                 entry = children[op] = (nxt, {})
                 self._trie_size += 1
+            nxt = entry[0]
+            if keep is not None:
+                if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
+                    continue
+                keep.append(op)
             state, children = entry
         if self._trie_size >= 200_000:
             self._trie, self._trie_size = {}, 0
-        return state
+        return state, children
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
@@ -147,15 +162,7 @@ class CurveProblem:
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         kept: list = []
-        state = self.template
-        for op in genome:
-            if isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl:
-                continue
-            try:
-                state = op.apply(state)
-            except OpError:
-                continue
-            kept.append(op)
+        state = self._walk(tuple(genome), kept)[0]
         while len(kept) < self.config.min_ops:
             op = self.random_gene(rng, tuple(kept))
             try:
@@ -191,9 +198,10 @@ class CurveProblem:
             low = self.model.minimum_total(corners)
             return 1e15 if low is None else 1e12 * (1.0 + abs(low - n))
         rms, both, excess = self.model.errors(corners, counts)
-        grow = math.exp(2.0 * n * math.log(self.m) / self.m)
-        if self.limit is None:
+        if self.limit is None:  # a C0 corner frees two continuity conditions: two parameters more in the BIC
+            grow = math.exp(2.0 * (n + 2 * len(corners)) * math.log(self.m) / self.m)
             return grow * max(rms, self.config.tolerance, excess) ** 2
+        grow = math.exp(2.0 * n * math.log(self.m) / self.m)
         cost = grow * max(rms, self.config.tolerance, self.limit) ** 2 * (1.0 + 1e-3 * rms / self.limit)
         if both > self.limit:
             cost *= 1e6 * (both / self.limit) ** 2  # infeasible: worse, and graded by the miss
@@ -264,6 +272,10 @@ class CurveProblem:
                         break
                 else:
                     break
+            if best_n - low <= 40:  # the walk can climb past a lower minimum (the true count): scan below it
+                for cand in range(low, best_n):
+                    if (c := self.structure_cost(corners, cand)) < best_cost:
+                        best_n, best_cost = cand, c
             out = (best_cost, best_n)
         self._best_structures[corners] = out
         return out
@@ -342,10 +354,12 @@ class CurveProblem:
     # --- the winner --------------------------------------------------------------------------------
     def final(self, genome: tuple, hurry: bool = False
               ) -> tuple[np.ndarray, tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
-        """Refined control points, their corners, and the structure (search corners, counts) of the winner.
+        """Control points, their corners, and the structure (search corners, counts) of the winner.
 
-        With a limit and a subsampled search, segments that miss it on all points get more control points
-        (up to four rounds). ``hurry``: the search's placement as it is (no refinement, no check)."""
+        Without a limit the placement is refined to convergence. With one, the curve is checked on all points
+        (both ways) and segments that miss get more control points (5 %, doubling each round), or, once at their
+        most, are fitted to the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
+        search's placement as it is (no refinement, no check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
         if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
@@ -355,45 +369,60 @@ class CurveProblem:
             if counts is None:
                 corners = ()
                 counts = self.model.allocation((), self.model.minimum_total(()))
-        ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
-        full = self.prepared.points
         if self.config.max_distance is None or hurry:
+            ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
             return ctrl, idx, corners, counts
         keys = self.model.segments(corners)
+        full = self.prepared.points
         tree = cKDTree(full)
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
-        best = None
-        for _ in range(4):
+        limit = self.config.max_distance * self.diag
+        grown, best = list(counts), None
+        owner = np.zeros(self.m, dtype=np.int64)  # the segment of each search point
+        for i, (a, b) in enumerate(keys):
+            if (a, b) != (-1, -1):
+                owner[np.arange(a, b + 1) % self.m] = i
+        last_err, last_count, frozen = np.zeros(len(keys)), list(counts), set()
+        for rnd in range(8):
+            ctrl, idx = self.model.assemble(corners, tuple(grown))
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
                                              with_samples=True)
             worst = max(float(there.max()), float(back.max()))
             if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
-                best = (worst, ctrl, idx, counts)
-            limit = self.config.max_distance * self.diag
+                best = (worst, ctrl, idx, tuple(grown))
             bad = np.flatnonzero(there > limit)
-            bad = np.concatenate([bad, tree.query(samples[back > limit])[1]]).astype(np.int64)
-            if not bad.size:
+            far = back > limit
+            if not bad.size and not far.any():
                 break
-            pos = np.searchsorted(self.prepared.search, bad).clip(0, self.m - 1)
-            hit = set()
-            for p in np.unique(pos):
-                for i, (a, b) in enumerate(keys):
-                    if (a, b) == (-1, -1) or a <= p <= b or a <= p + self.m <= b:
-                        hit.add(i)
-            grown = tuple(min(self.model.max_count(k), c + max(1, c // 10)) if i in hit else c
-                          for i, (k, c) in enumerate(zip(keys, counts)))
-            if grown == counts:
+            where = np.concatenate([bad, tree.query(samples[far])[1]]).astype(np.int64)
+            errors = np.concatenate([there[bad], back[far]])
+            seg_err = np.zeros(len(keys))
+            np.maximum.at(seg_err, owner[np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)], errors)
+            changed = False
+            for i in np.flatnonzero(seg_err > limit):
+                key, top = keys[i], self.model.max_count(keys[i])
+                if i in frozen:
+                    continue
+                if seg_err[i] > last_err[i] > 0.0:  # its growth made it worse (an overfit): back, and keep it
+                    grown[i] = last_count[i]
+                    frozen.add(i)
+                    changed = True
+                    continue
+                last_err[i], last_count[i] = seg_err[i], grown[i]
+                if self.model.use_all(key):  # the search's subsample misses between its points: fit them all
+                    self.model.bound(key, grown[i])
+                    grown[i] = self.model.need(key, self.limit)
+                    changed = True
+                elif grown[i] < top:
+                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * min(2 ** rnd, 4))  # faster if it persists
+                    changed = True
+                elif self.model.densify(key):
+                    grown[i] = self.model.need(key, self.limit)
+                    changed = True
+            if not changed:
                 break
-            counts = grown
-            ctrl, idx = self.model.assemble(corners, counts, refine=True)
-        else:
-            spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
-            there, back = two_sided(spline, full, self.closed, per_span=32, corners=data_corners)
-            if max(float(there.max()), float(back.max())) < best[0]:
-                best = (max(float(there.max()), float(back.max())), ctrl, idx, counts)
-        if max(float(there.max()), float(back.max())) > best[0]:
-            _, ctrl, idx, counts = best
+        _, ctrl, idx, counts = best
         return ctrl, idx, corners, counts
 
 
@@ -432,6 +461,13 @@ def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: in
 
 
 def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
+    stall = config.tolerance_stall_generations
+    if isinstance(stall, bool) or not isinstance(stall, int) or stall < 0:
+        raise ConfigError(f"tolerance-stall-generations must be a whole number >= 0, not {stall!r}")
+    if config.max_distance is not None and config.polish and stall:
+        stall = min(stall, config.stall_generations) if config.stall_generations else stall
+    else:
+        stall = config.stall_generations
     return GAConfig(
         scheme="steady_state",
         initial_population=config.initial_population,
@@ -444,7 +480,7 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
         elite_fraction=config.elite_fraction,
         generations=config.generations,
         threshold=problem.threshold() or 0.0,
-        stall_generations=config.stall_generations or None,
+        stall_generations=stall or None,
         max_seconds=config.max_seconds or None,
         local_search_every=1 if config.polish else 0,
     )

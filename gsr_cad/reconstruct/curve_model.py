@@ -10,7 +10,8 @@ curve -> data (curve samples per span and between neighbouring foot points, agai
 so a curve cannot make a loop or bridge a gap far from the data.
 
 With a max-distance tolerance ``X`` each segment gets the fewest control points whose two-sided max
-distance is within ``X`` (exponential then bisection search, no fixed cap below the segment's point count);
+distance is within ``X`` (exponential then bisection search, or a gallop from its parts' counts for a merged
+segment; no fixed cap below the segment's point count; the data's model is sharp at every corner candidate);
 without one, points go one at a time to the segment whose squared error drops most and the total count
 minimises the BIC-like cost of :mod:`gsr_cad.reconstruct.curve`.
 """
@@ -51,7 +52,7 @@ class CurveModel:
 
     def __init__(self, points: np.ndarray, closed: bool, candidates: np.ndarray, config: CurveConfig,
                  degree: int, diag: float, limit: float | None, lo: np.ndarray, hi: np.ndarray,
-                 sharp: np.ndarray | None = None):
+                 sharp: np.ndarray | None = None, full: np.ndarray | None = None, search: np.ndarray | None = None):
         self.points, self.closed, self.config, self.degree = points, closed, config, degree
         self.sharp = np.zeros(0, dtype=np.int64) if sharp is None else np.asarray(sharp, dtype=np.int64)
         self.candidates = np.asarray(candidates, dtype=np.int64)
@@ -60,6 +61,8 @@ class CurveModel:
         self._fits: dict[tuple[Key, int], SegmentFit] = {}
         self._models: dict[Key, np.ndarray] = {}
         self._densified: set[Key] = set()  # segments fitted to their data model (the limit was out of reach)
+        self.full, self.search = full, search  # all the data, and the search points' indices into them
+        self._all: set[Key] = set()  # segments fitted to all their data points (see use_all)
         self._need: dict[Key, int] = {}
         self._lower: dict[Key, int] = {}  # proven lower bounds of need()
         self.upto: int | None = None  # the best known total: segments needing more are not searched further
@@ -77,9 +80,31 @@ class CurveModel:
         return list(zip(ends[:-1], ends[1:]))
 
     def segment_points(self, key: Key) -> np.ndarray:
+        """The segment's search points, or all its data points once :meth:`use_all` was called for it."""
+        if key in self._all:
+            return self.full[self._full_range(key)]
         if key == PERIODIC:
             return self.points
         return self.points[np.arange(key[0], key[1] + 1) % self.m]
+
+    def _full_range(self, key: Key) -> np.ndarray:
+        """Indices into :attr:`full` of the data points of segment ``key`` (its ends included)."""
+        total = len(self.full)
+        if key == PERIODIC:
+            return np.arange(total)
+        a = int(self.search[key[0] % self.m])
+        b = int(self.search[key[1] % self.m]) + (total if key[1] >= self.m else 0)
+        return np.arange(a, b + 1) % total
+
+    def use_all(self, key: Key) -> bool:
+        """Fit segment ``key`` to all its data points from now on (a subsampled search missed between its
+        points); False when there is nothing more to use."""
+        if self.full is None or key in self._all or len(self._full_range(key)) <= len(self.segment_points(key)):
+            return False
+        self._all.add(key)
+        self._densified.discard(key)
+        self._forget(key)
+        return True
 
     def min_count(self, key: Key) -> int:
         """One span per segment; a closed curve with a single corner needs one point more (it wraps)."""
@@ -90,18 +115,29 @@ class CurveModel:
     def max_count(self, key: Key) -> int:
         """No fixed cap below what the data can support: two thirds of the segment's points (nearer to
         interpolation the placement is ill-posed), or the user's cap."""
-        size = self.m if key == PERIODIC else key[1] - key[0] + 1
+        size = len(self.segment_points(key))
         if key in self._densified:
             size *= 4
         cap = max(self.degree + 1, (2 * size) // 3)
         return min(cap, self.config.max_control_points) if self.config.max_control_points else cap
+
+    def _inner_candidates(self, key: Key) -> np.ndarray:
+        """Corner candidates inside segment ``key``, as indices into :meth:`segment_points`: the data's model is
+        sharp there whether or not the curve makes them corners (as in the final check on all points)."""
+        if key in self._all:
+            where = self._full_range(key)
+            return np.flatnonzero(np.isin(where, self.search[self.candidates]))
+        if key == PERIODIC:
+            return self.candidates
+        rel = np.mod(self.candidates - key[0], self.m)
+        return rel[(rel > 0) & (rel < key[1] - key[0])]
 
     def _fit_points(self, key: Key) -> np.ndarray:
         """The segment's points, densified along the polyline when it has too few for a well-posed fit, or
         sampled on the data model when the data alone are too coarse for the limit (see :meth:`need`)."""
         pts = self.segment_points(key)
         if key in self._densified:
-            dense = data_model(pts, key == PERIODIC, per_segment=4)
+            dense = data_model(pts, key == PERIODIC, self._inner_candidates(key), per_segment=4)
             return dense[:-1] if key == PERIODIC else dense
         while len(pts) < 2 * (self.degree + 2) and key != PERIODIC:
             mid = 0.5 * (pts[:-1] + pts[1:])
@@ -119,14 +155,16 @@ class CurveModel:
         if self.config.fitness == "geometric":
             near = [c for (k, c) in self._fits if k == key and c < n]
             warm = self._fits[(key, max(near))].fit.params if near else None
-        # Parameter correction converges linearly, slowest on sparse data; small segments are cheap, so they
-        # get four times the rounds (an unconverged fit of the true count would lose to more points).
-        rounds = self.config.fit_iterations * (4 if len(pts) <= 400 else 1)
+        # Parameter correction converges linearly, slowest on sparse data; without a limit (where the count is
+        # the BIC's) small segments get four times the rounds and a joint step (an unconverged fit of the true
+        # count would lose to more points). With a limit the minimax step follows instead.
+        rounds = self.config.fit_iterations * (4 if len(pts) <= 400 and self.limit is None else 1)
         fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
-                        hi=self.hi, warm_params=warm, closed=closed)
+                        hi=self.hi, warm_params=warm, closed=closed, joint=self.limit is None)
         limit = self.limit
         if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
-            fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)  # a tolerance is a maximum
+            fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi,  # a tolerance is a maximum
+                                 goal=0.9 * limit * self.diag)
         out = self._measure(key, pts, fit)
         self._fits[(key, n)] = out
         return out
@@ -134,14 +172,14 @@ class CurveModel:
     def _measure(self, key: Key, pts: np.ndarray, fit: CurveFit) -> SegmentFit:
         closed = key == PERIODIC
         model = self._models.get(key)
-        if model is None:  # the data's local model (sharp at the segment's ends, which are corners or ends)
-            model = self._models[key] = data_model(pts, closed)
+        if model is None:  # the data's local model, sharp at the segment's ends and at the candidates inside it
+            model = self._models[key] = data_model(self.segment_points(key), closed, self._inner_candidates(key))
         spline = bspline.make_spline(fit.ctrl, self.degree, closed)
         u = np.sort(fit.params)
         mids = 0.5 * (u[:-1] + u[1:])
         if closed:
             mids = np.concatenate([mids, [np.mod(0.5 * (u[-1] + u[0] + 1.0), 1.0)]])
-        back = curve_to_points(spline, pts, closed, per_span=8, extra=mids, model=model)
+        back = curve_to_points(spline, pts, closed, per_span=16, extra=mids, model=model)
         gaps = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]) if closed else pts, axis=0), axis=1)
         return SegmentFit(fit, float(np.sum(fit.distances ** 2)), float(fit.distances.max()), float(back.max()),
                           0.5 * float(gaps.max()))
@@ -167,6 +205,10 @@ class CurveModel:
     def meets(self, key: Key, n: int, limit: float) -> bool:
         return self.fit(key, n).both_max / self.diag <= limit
 
+    def bound(self, key: Key, n: int) -> None:
+        """Take ``n`` as a lower bound of segment ``key``'s need (e.g. the count that missed on fewer points)."""
+        self._lower[key] = max(self._lower.get(key, 0), int(n))
+
     def need(self, key: Key, limit: float, upto: int | None = None) -> int:
         """Fewest control points meeting ``limit`` both ways (the most allowed when none does).
 
@@ -189,8 +231,23 @@ class CurveModel:
             self._need[key] = lo
             return lo
         bad, n = max(lo, bound - 1), max(lo, bound - 1)
-        while True:  # grow by half until met, then bisect between the last miss and the first hit
-            n = min(top, max(n + 1, int(math.ceil(n * 1.5))))
+        guess = self._guess(key)
+        step = 0
+        if guess is not None and bad < guess < (top if upto is None else upto):
+            # A merge of two segments needs about what its parts needed together: gallop from there.
+            if self.meets(key, guess, limit):
+                good, gap = guess, 1
+                while good - gap > bad:
+                    if not self.meets(key, good - gap, limit):
+                        bad = good - gap
+                        break
+                    good, gap = good - gap, 2 * gap
+                return self._bisect(key, limit, bad, good)
+            bad = n = guess
+            step = 1
+        while True:  # grow by half (or gallop from a guess) until met, then bisect between miss and hit
+            n = min(top, n + step if step else max(n + 1, int(math.ceil(n * 1.5))))
+            step *= 2
             if upto is not None and n > upto:
                 if bad < upto and not self.meets(key, upto, limit):
                     bad = upto
@@ -204,17 +261,17 @@ class CurveModel:
             if n >= top and key not in self._densified and not bounded:
                 # Coarse data: between samples the curve cannot follow both the points and their model.
                 # Fit the model's samples instead (they include the points) and search again.
-                self._densified.add(key)
-                for stale in [fk for fk in self._fits if fk[0] == key]:
-                    del self._fits[stale]
-                self._lower.pop(key, None)
+                self.densify(key)
                 return self.need(key, limit, upto)
             if n >= top:  # the limit is out of reach: the tried count that came closest
                 tried = [c for (k, c) in self._fits if k == key]
                 best = min(tried, key=lambda c: (self._fits[(key, c)].both_max, c))
                 self._need[key] = best
                 return best
-        good = n
+        return self._bisect(key, limit, bad, n)
+
+    def _bisect(self, key: Key, limit: float, bad: int, good: int) -> int:
+        """The fewest count in ``(bad, good]`` meeting ``limit`` (``good`` does, ``bad`` does not), remembered."""
         while good - bad > 1:
             mid = (good + bad) // 2
             if self.meets(key, mid, limit):
@@ -223,6 +280,33 @@ class CurveModel:
                 bad = mid
         self._need[key] = good
         return good
+
+    def _guess(self, key: Key) -> int | None:
+        """The counts two known segments that make up ``key`` needed together (they share a point), if any."""
+        if key == PERIODIC or key in self._all:
+            return None
+        a, c = key
+        for (k0, k1), n0 in self._need.items():
+            if k0 == a and k1 < c and (k1, c) in self._need:
+                return n0 + self._need[(k1, c)] - 1
+        return None
+
+    def densify(self, key: Key) -> bool:
+        """Fit segment ``key`` to its data model's samples from now on (the points alone are too coarse for the
+        limit); False when it already is."""
+        if key in self._densified:
+            return False
+        self._densified.add(key)
+        self._forget(key)
+        return True
+
+    def _forget(self, key: Key) -> None:
+        for stale in [fk for fk in self._fits if fk[0] == key]:
+            del self._fits[stale]
+        self._models.pop(key, None)
+        self._lower.pop(key, None)
+        self._need.pop(key, None)
+        self._alloc.clear()
 
     def _spans_sharp(self, key: Key) -> bool:
         """Whether a sharp candidate (turning twice the corner angle) lies strictly inside the segment: smoothing
