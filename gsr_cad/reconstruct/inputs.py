@@ -380,13 +380,23 @@ class SurfaceTarget(_PointSet):
         """``(distance, corresponding point)`` of each row of ``x`` to this target: the closest point on a
         mesh's triangles; for a cloud the nearest sample, at the distance beyond its sampling radius (0
         within it)."""
-        from ..geometry.surface_distance import cloud_distance
-
         if self.triangle_set is not None:
             c = self.triangle_set.closest(x)
             return c.distance, c.point
-        d, idx = cloud_distance(x, self.points, self.sampling_radius, self.kdtree)
-        return d, self.points[idx]
+        d, idx = self.kdtree.query(x)
+        return np.maximum(d - self.radius_at(idx), 0.0), self.points[idx]
+
+    def radius_at(self, idx: np.ndarray) -> np.ndarray:
+        """The sampling radius (:attr:`sampling_radius`) of the points ``idx`` only, unless all are known: a
+        few queries on a huge cloud do not pay for its every point's neighbours."""
+        if "sampling_radius" in self.__dict__:
+            return self.sampling_radius[idx]
+        k = min(CLOUD_SAMPLING_NEIGHBOURS, len(self.points) - 1)
+        if k < 1:
+            return np.zeros(len(idx))
+        distinct, back = np.unique(idx, return_inverse=True)
+        d, _ = self.kdtree.query(self.points[distinct], k=k + 1)
+        return d[:, -1][back]
 
     def __len__(self) -> int:
         return len(self.points)
