@@ -10,8 +10,8 @@ user would have them:
 
 Each runs as its own ``gsr curve`` / ``gsr surface`` process with default settings, ``--formats none`` and
 ``--quiet``; surfaces with the search budget ``--max-seconds`` (default 30, a hard cap on search, polish
-and history rewrite; the final distances over all points come after it). Peak memory is the child's
-maximum resident set size (``wait4``). The target is met when the whole run takes under 60 s and 2 GB.
+and history rewrite; the final distances over all points come after it). Peak memory is the run's
+maximum resident set size (GNU ``time``, else ``wait4``). The target is met when the whole run takes under 60 s and 2 GB.
 Distances are both ways, over every input point, in % of the bounding-box diagonal (from result.json). On
 a shared machine the timings are noisy: the load average at the start is printed with them.
 
@@ -32,9 +32,6 @@ from pathlib import Path
 import numpy as np
 
 from gsr_cad.atomic import write_text
-from gsr_cad.geometry.bspline import make_spline
-from gsr_cad.geometry.limit_surface import LimitSurface
-from gsr_cad.reconstruct.samples import get_sample
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # _common, also when this file is loaded by path
 from _common import command, environment, load_average, markdown_table  # noqa: E402
@@ -52,6 +49,10 @@ def _write(path: Path, points: np.ndarray, header: str) -> Path:
 
 def make_inputs(d: Path, n: int, only: str | None) -> list[tuple[str, str, Path]]:
     """``(label, kind, file)`` of the huge inputs, written into ``d``."""
+    from gsr_cad.geometry.bspline import make_spline
+    from gsr_cad.geometry.limit_surface import LimitSurface
+    from gsr_cad.reconstruct.samples import get_sample
+
     out = []
     if only in (None, "curve"):
         ctrl = np.asarray(get_sample("bspline_09").truth_ctrl)
@@ -67,11 +68,19 @@ def make_inputs(d: Path, n: int, only: str | None) -> list[tuple[str, str, Path]
 
 
 def run(kind: str, path: Path, out: Path, max_seconds: float, timeout: float) -> tuple[int, float, float]:
-    """Exit code, wall seconds and peak resident MB of one ``gsr`` run."""
+    """Exit code, wall seconds and peak resident MB of one ``gsr`` run.
+
+    Linux carries a parent's peak over into a forked child's, so the peak is read by GNU ``time`` (a small
+    parent) where it is installed, else from ``wait4`` (then it includes this script's own, which is small
+    too: the inputs are made in a child process)."""
     argv = [sys.executable, "-m", "gsr_cad", kind, str(path), "-o", str(out), "--quiet", "--formats", "none",
             "--seed", "1"]
     if kind == "surface":
         argv += ["--max-seconds", f"{max_seconds:g}"]
+    gnu_time = Path("/usr/bin/time")
+    peak_file = out.with_suffix(".peak")
+    if gnu_time.is_file():
+        argv = [str(gnu_time), "-f", "%M", "-o", str(peak_file), *argv]
     started = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = started + timeout
@@ -89,7 +98,11 @@ def run(kind: str, path: Path, out: Path, max_seconds: float, timeout: float) ->
     err = proc.stderr.read().decode(errors="replace").strip() if proc.stderr else ""
     if proc.returncode not in (0, 3):
         print(f"{kind} {path.name}: exit {proc.returncode}: {err[-500:]}", file=sys.stderr)
-    return proc.returncode, seconds, usage.ru_maxrss / 1024.0
+    peak_kb = float(usage.ru_maxrss)
+    if peak_file.is_file():
+        lines = peak_file.read_text().split()
+        peak_kb = float(lines[-1]) if lines and lines[-1].isdigit() else peak_kb
+    return proc.returncode, seconds, peak_kb / 1024.0
 
 
 def _pct(x: object) -> str:
@@ -103,14 +116,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=300.0, help="kill a run after this many seconds")
     parser.add_argument("--only", choices=("curve", "surface"), help="only curves or only clouds")
     parser.add_argument("--no-write", action="store_true", help=f"do not write {RESULTS.name}")
+    parser.add_argument("--make", metavar="DIR", help=argparse.SUPPRESS)  # the child that writes the inputs
     args = parser.parse_args(argv)
+    if args.make:
+        print(json.dumps([(label, kind, path.name) for label, kind, path in
+                          make_inputs(Path(args.make), args.points, args.only)]))
+        return 0
     load = load_average()
     header = ["input", "points", "budget", "seconds", "peak MB", "data->fit mean %", "data->fit max %",
               "fit->data mean %", "fit->data max %", "search points", "metric points", "met?"]
     rows = []
     with tempfile.TemporaryDirectory(prefix="gsr-huge-") as tmp:
         d = Path(tmp)
-        for label, kind, path in make_inputs(d, args.points, args.only):
+        made = subprocess.run([sys.executable, __file__, "--make", tmp, "--points", str(args.points),
+                               *(["--only", args.only] if args.only else [])], check=True, capture_output=True,
+                              text=True)
+        for label, kind, name in json.loads(made.stdout):
+            path = d / name
             out = d / f"out-{path.stem}"
             code, seconds, mb = run(kind, path, out, args.max_seconds, args.timeout)
             m, n_target = {}, "-"

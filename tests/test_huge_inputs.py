@@ -68,3 +68,15 @@ def test_a_subsampled_search_reports_distances_over_every_point(truth, monkeypat
     assert m["data_to_fit_max"] == pytest.approx(distances[outlier] / target.diagonal, rel=1e-9)
     assert m["data_to_fit_max"] > on_search["data_to_fit_max"]
     assert m["data_to_fit_mean"] == pytest.approx(distances.mean() / target.diagonal, rel=1e-9)
+
+
+def test_a_huge_curve_report_draws_an_ordered_bounded_subset():
+    from gsr_cad.cli._common import REPORT_POINTS, report_points
+
+    points = np.stack([np.arange(250_001.0), np.sin(np.arange(250_001.0))], axis=1)
+    drawn = report_points(points)
+    assert len(drawn) == REPORT_POINTS
+    assert np.array_equal(drawn[0], points[0]) and np.array_equal(drawn[-1], points[-1])
+    assert np.all(np.diff(drawn[:, 0]) > 0)  # curve order kept
+    small = points[:500]
+    assert report_points(small) is small
