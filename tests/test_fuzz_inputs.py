@@ -585,3 +585,29 @@ def test_stale_staging_folders_are_removed(tmp_path):
     assert run.code == 0
     assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
     assert stat.S_ISREG(os.stat(out / "result.json").st_mode)
+
+
+@pytest.mark.parametrize("command", ["curve", "surface", "sample", "subdivide"])
+def test_no_space_left_is_one_error_line(tmp_path, monkeypatch, capsys, command):
+    """ENOSPC (a full disk) when a finished file is moved into place: one ``error:`` line, exit 2, no temp file
+    left (in-process: a non-root user cannot fill a real disk for a test)."""
+    import errno
+
+    from gsr_cad import atomic
+    from gsr_cad.cli import main
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    argv = {"curve": ["curve", _file(tmp_path, "c.csv", _curve_csv()), "-o", tmp_path / "out", *TINY_CURVE],
+            "surface": ["surface", _file(tmp_path, "t.obj", _cube_obj()), "-o", tmp_path / "out", *TINY_SURFACE],
+            "sample": ["sample", "bspline_05", "-o", tmp_path / "out" / "c.csv"],
+            "subdivide": ["subdivide", _file(tmp_path, "t.obj", _cube_obj()), "-o", tmp_path / "out" / "s.obj"]}
+    monkeypatch.setattr(atomic.os, "replace", full)
+    code = main([str(a) for a in argv[command]])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "No space left on device" in lines[0], err
+    left = [p.name for p in (tmp_path / "out").rglob("*")] if (tmp_path / "out").exists() else []
+    assert not [n for n in left if n.endswith(".tmp")], left
