@@ -571,7 +571,7 @@ def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRI
 
     Beyond ``seeds`` points, a fixed random ``seeds`` of them get the full search of
     :meth:`LimitSurface.closest`, and every other point starts its Newton iteration from its nearest
-    seed's foot point (a fresh search where that leaves the patch). A foot point so found is a point of
+    seed's foot point, moved along the seed's tangent plane (a fresh search where that leaves the patch). A foot point so found is a point of
     the surface, so its distance can only be too large, and by 1-Lipschitz continuity it is certainly
     wrong where it exceeds the seed's distance plus the distance to the seed: those points, and the
     points whose distance could still be the largest, get the full search too, so the maximum is exact."""
@@ -581,12 +581,26 @@ def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRI
         return np.concatenate([surface.closest(x[a:a + chunk]).distance for a in range(0, n, chunk)])
     pick = np.sort(np.random.default_rng(_TARGET_SEED).choice(n, seeds, replace=False))
     base = surface.closest(x[pick])
+    on = base.patch >= 0
+    su, sv = np.zeros((seeds, 3)), np.zeros((seeds, 3))
+    _, su[on], sv[on] = surface.evaluate(base.patch[on], base.u[on], base.v[on], derivatives=True)
     tree = cKDTree(x[pick])
     out = np.empty(n)
     for a in range(0, n, chunk):
         part = np.asarray(x[a:a + chunk], dtype=np.float64)
         gap, j = tree.query(part)
         hint = Hits(*(getattr(base, f.name)[j] for f in dataclasses.fields(Hits)))
+        # Newton starts at the seed's parameters stepped along its tangent plane towards the point (one
+        # iteration fewer)
+        r = part - base.point[j]
+        uu, uv, vv = (np.einsum("ij,ij->i", p, q) for p, q in ((su[j], su[j]), (su[j], sv[j]), (sv[j], sv[j])))
+        ru, rv = np.einsum("ij,ij->i", su[j], r), np.einsum("ij,ij->i", sv[j], r)
+        det = uu * vv - uv * uv
+        ok = det > 1e-14 * (uu * vv + 1e-300)
+        det = np.where(ok, det, 1.0)
+        u = np.where(ok, np.clip(hint.u + (vv * ru - uv * rv) / det, 0.0, 1.0), hint.u)
+        v = np.where(ok, np.clip(hint.v + (uu * rv - uv * ru) / det, 0.0, 1.0), hint.v)
+        hint = dataclasses.replace(hint, u=u, v=v)
         d = surface.closest(part, hint).distance
         wrong = np.flatnonzero(d > (base.distance[j] + gap) * (1.0 + 1e-9))
         if wrong.size:
