@@ -508,7 +508,7 @@ def mesh_target(mesh, source: str, label: str) -> SurfaceTarget:
     used = np.unique(tri)
     v = np.asarray(mesh.vertices, dtype=np.float64)
     if len(used) < len(v):
-        warnings.warn(f"{source}: ignored {len(v) - len(used)} vertex(es) that no face uses", GsrWarning,
+        warnings.warn(f"{source}: ignored {len(v) - len(used)} vertex(es) that no face of non-zero area uses", GsrWarning,
                       stacklevel=2)
         remap = np.full(len(v), -1, dtype=np.int64)
         remap[used] = np.arange(len(used))
