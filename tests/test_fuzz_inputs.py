@@ -217,6 +217,18 @@ surface_file("nonmanifold.obj", _obj(np.vstack([V, [[1, 1, 1]]]), F + [[1, 2, 4]
 surface_file("flipped.obj", _obj(V, [F[0][::-1]] + F[1:]))
 surface_file("zero-area.obj", _obj(np.vstack([V, [[0.5, 0.5, 0]]]), F + [[1, 2, 4]]), ANY)
 surface_file("mesh.unknown", _cube_obj())
+surface_file("duplicate-face.obj", _obj(V, F + [F[0]]))
+surface_file("stray-vertex.obj", _obj(np.vstack([V, [[50.0, 50.0, 50.0]]]), F), OK)
+surface_file("index-float.obj", _obj(V, F[:3]) + "f 1 2 1e3\n")
+surface_file("random.xyz", "".join(f"{x} {y} {z}\n" for x, y, z in np.random.default_rng(4).random((200, 3))), OK)
+# extreme scales: a result holds coordinates up to 1e12, so the data may not come near it; tiny ones are fine
+surface_file("scale-9e8.xyz", "".join(f"{x} {y} {z}\n" for x, y, z in 9e8 * _cube_cloud() / np.abs(_cube_cloud()).max()),
+             OK)
+surface_file("scale-1e40.xyz", "".join(f"{x}e40 {y}e40 {z}e40\n" for x, y, z in _cube_cloud()))
+curve_file("scale-9e8.csv", "".join(f"{9e8 + i * 1e6},{9e8 + 1e6 * (i % 3)}\n" for i in range(20)), OK,
+           ("--bounds-margin", "100"))
+curve_file("scale-2e9.csv", "".join(f"{2e9 + i * 1e6},{2e9 + 1e6 * (i % 3)}\n" for i in range(20)))
+curve_file("scale-1e-40.csv", "".join(f"{i}e-40,{i % 3}e-40\n" for i in range(20)), OK)
 
 # flags
 for flags in (("--tolerance", "1e300"), ("--tolerance", "nan"), ("--max-distance", "-1"), ("--population", "1e8"),
@@ -246,6 +258,57 @@ def _(d):
 def _(d):
     (d / "out" / "result.json").mkdir(parents=True)
     return ["curve", _file(d, "c.csv", _curve_csv()), "-o", d / "out", *TINY_CURVE]
+
+
+@case("out-result-json-is-fifo", ANY)
+def _(d):
+    (d / "out").mkdir()
+    os.mkfifo(d / "out" / "result.json")
+    return ["curve", _file(d, "c.csv", _curve_csv()), "-o", d / "out", *TINY_CURVE]
+
+
+for kind in ("surface", "replay", "batch", "subdivide"):
+    @case(f"{kind}-out-empty")
+    def _(d, kind=kind):
+        src = {"surface": ("t.obj", _cube_obj()), "subdivide": ("t.obj", _cube_obj()),
+               "replay": ("result.json", json.dumps(_result_json())), "batch": ("c.csv", _curve_csv())}[kind]
+        extra = {"surface": TINY_SURFACE, "batch": ("--workers", "1")}.get(kind, ())
+        return [kind, _file(d, *src), "-o", "", *extra]
+
+
+for flag in ("--truth", "--clean"):
+    @case(f"sample{flag}-is-dir")
+    def _(d, flag=flag):
+        (d / "exists").mkdir()
+        return ["sample", "bspline_05", "-o", d / "c.csv", flag, d / "exists"]
+
+
+@case("sample-cloud-empty")
+def _(d):
+    return ["sample", "extended", "-o", d / "t.obj", "--cloud", ""]
+
+
+@case("surface-template-fifo")
+def _(d):
+    os.mkfifo(d / "pipe.obj")
+    return ["surface", _file(d, "t.obj", _cube_obj()), "-o", d / "out", "--template", d / "pipe.obj", *TINY_SURFACE]
+
+
+@case("curve-checkpoint-fifo")
+def _(d):
+    os.mkfifo(d / "pipe.ckpt")
+    return ["curve", _file(d, "c.csv", _curve_csv()), "-o", d / "out", "--checkpoint", d / "pipe.ckpt", *TINY_CURVE]
+
+
+@case("resume-run-json-fifo")
+def _(d):
+    os.mkfifo(d / "run.json")
+    return ["resume", d]
+
+
+@case("batch-workers-absurd")
+def _(d):
+    return ["batch", _file(d, "c.csv", _curve_csv()), "-o", d / "out", "--workers", "1e9"]
 
 
 @case("tex-name", OK)
@@ -367,6 +430,10 @@ json_case("points-nan", json.dumps({**_result_json(), "control_points": [[0, "Na
 json_case("genome-garbage", json.dumps({**_result_json(), "genome": [{"op": "nope"}]}))
 json_case("binary", bytes(range(256)))
 json_case("truncated", json.dumps(_result_json())[:-20])
+json_case("float-overflow", json.dumps(_result_json()).replace('"seed": 1', '"seed": 1e5000'))
+json_case("nested-objects-50000", '{"a": ' * 50000 + "1" + "}" * 50000)
+json_case("points-1e5000", json.dumps({**_result_json(), "control_points": [[0, 0], [1, 1], [2, 0], [3, 1]]})
+          .replace("[1, 1]", "[1e5000, 1]"))
 json_case("bom-ok-but-empty-genome", "\ufeff" + json.dumps({**_result_json(), "control_points": "x"}))
 
 
@@ -423,7 +490,7 @@ def test_fuzz(tmp_path, name, expect, write):
 
 
 def test_corpus_is_bounded():
-    assert 150 <= len(CASES) <= 220
+    assert 190 <= len(CASES) <= 240
     assert len({c[0] for c in CASES}) == len(CASES)
 
 
@@ -504,9 +571,11 @@ def test_zero_area_target_faces_are_dropped_with_a_warning(tmp_path):
 
     v, f = _tetra()
     path = _file(tmp_path, "z.obj", _obj(np.vstack([v, [[0.5, 0.5, 0]]]), f + [[1, 2, 4]]))
-    with pytest.warns(GsrWarning, match="zero-area"):
+    with pytest.warns(GsrWarning) as caught:
         target = surface_target(path)
-    assert len(target.faces) == 4
+    messages = [str(w.message) for w in caught]
+    assert any("zero-area" in m for m in messages) and any("ignored 1 vertex" in m for m in messages), messages
+    assert len(target.faces) == 4 and len(target.points) == 4
 
 
 def test_stale_staging_folders_are_removed(tmp_path):
@@ -518,3 +587,29 @@ def test_stale_staging_folders_are_removed(tmp_path):
     assert run.code == 0
     assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
     assert stat.S_ISREG(os.stat(out / "result.json").st_mode)
+
+
+@pytest.mark.parametrize("command", ["curve", "surface", "sample", "subdivide"])
+def test_no_space_left_is_one_error_line(tmp_path, monkeypatch, capsys, command):
+    """ENOSPC (a full disk) when a finished file is moved into place: one ``error:`` line, exit 2, no temp file
+    left (in-process: a non-root user cannot fill a real disk for a test)."""
+    import errno
+
+    from gsr_cad import atomic
+    from gsr_cad.cli import main
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    argv = {"curve": ["curve", _file(tmp_path, "c.csv", _curve_csv()), "-o", tmp_path / "out", *TINY_CURVE],
+            "surface": ["surface", _file(tmp_path, "t.obj", _cube_obj()), "-o", tmp_path / "out", *TINY_SURFACE],
+            "sample": ["sample", "bspline_05", "-o", tmp_path / "out" / "c.csv"],
+            "subdivide": ["subdivide", _file(tmp_path, "t.obj", _cube_obj()), "-o", tmp_path / "out" / "s.obj"]}
+    monkeypatch.setattr(atomic.os, "replace", full)
+    code = main([str(a) for a in argv[command]])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "No space left on device" in lines[0], err
+    left = [p.name for p in (tmp_path / "out").rglob("*")] if (tmp_path / "out").exists() else []
+    assert not [n for n in left if n.endswith(".tmp")], left

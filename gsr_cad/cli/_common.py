@@ -127,6 +127,18 @@ def config_overrides(args: argparse.Namespace, config_cls: type) -> dict[str, An
     return out
 
 
+REPORT_POINTS = 20_000
+"""Most target points of a curve the reports draw (the distances they state are the result's, over all points)."""
+
+
+def report_points(points: np.ndarray, limit: int = REPORT_POINTS) -> np.ndarray:
+    """The target points a curve report draws: all of them up to ``limit``, else ``limit`` evenly spaced in
+    order (the first and the last kept), so a 10^6-point curve draws in seconds."""
+    if len(points) <= limit:
+        return points
+    return points[np.unique(np.linspace(0, len(points) - 1, limit).round().astype(np.int64))]
+
+
 def write_control_points(path: Path, points: np.ndarray) -> Path:
     """``x,y`` (or ``x,y,z``) CSV of the control points at full double precision, atomically."""
     pts = np.asarray(points, dtype=float)

@@ -15,8 +15,8 @@ from ..reconstruct.curve import CurveWarning, reconstruct_curve
 from ..reconstruct.inputs import curve_target, load_curve_points
 from ..reconstruct.units import resolve_lengths
 from ._common import (add_config_flags, add_run_flags, check_run_args, config_overrides, html_module, output_dir,
-                      parse_formats, plots_module, save_run_args, searching, settle_stop, write_control_points,
-                      write_exports, write_outputs)
+                      parse_formats, plots_module, report_points, save_run_args, searching, settle_stop,
+                      write_control_points, write_exports, write_outputs)
 from .summary import add_model_units, finish
 
 
@@ -60,14 +60,15 @@ def run(args: argparse.Namespace) -> int:
             print(f"warning: {w.message}", file=sys.stderr)
     settle_stop(result)
     add_model_units(result)
+    drawn = report_points(target.points)
     written = write_outputs(progress, [
         ("writing result.json", lambda: result.save(out)),
         ("writing control_points.csv",
          lambda: write_control_points(out / "control_points.csv", result.control_points)),
         ("drawing report.png",
-         lambda: plots_module().curve_report(result, target.points, out / "report.png", truth=truth)),
+         lambda: plots_module().curve_report(result, drawn, out / "report.png", truth=truth)),
         ("drawing report.html",
-         lambda: reports.curve_html(result, target.points, out / "report.html", truth=truth)),
+         lambda: reports.curve_html(result, drawn, out / "report.html", truth=truth)),
         ("writing the exports", lambda: write_exports(result, out, formats)),
     ])
     return finish(result, out, written[2:])

@@ -25,8 +25,10 @@ MAX_INPUT_BYTES = 1 << 30
 """Largest input file read (1 GiB): enough for 10^7 text points; anything bigger is refused before reading."""
 MAX_POINTS = 20_000_000
 """Most points a target may have."""
-MAX_COORDINATE = 1e50
-"""Largest coordinate magnitude accepted: areas squared (fourth powers) of larger ones overflow doubles."""
+MAX_COORDINATE = 1e9
+"""Largest coordinate magnitude accepted: a result holds coordinates up to 1e12
+(:data:`gsr_cad.reconstruct.result.MAX_COORDINATE`), and the search's box may reach out a hundred
+diagonals beyond the data (a curve's ``bounds_margin``)."""
 MIN_EXTENT = 1e-50
 """Smallest extent of a target (fourth powers of smaller ones underflow)."""
 MIN_RELATIVE_EXTENT = 1e-12
@@ -150,7 +152,7 @@ def check_coordinates(pts: np.ndarray, source: str) -> None:
     if big > MAX_COORDINATE:
         bad = int(np.argwhere(np.abs(pts) > MAX_COORDINATE)[0, 0])
         raise InputError(f"{source}: point {bad + 1} has a coordinate of magnitude {big:.3g}; at most "
-                         f"{MAX_COORDINATE:.0e} is supported (rescale the data)")
+                         f"{MAX_COORDINATE:.0e} is supported (rescale the data, or subtract an offset)")
     spread = float((pts.max(axis=0) - pts.min(axis=0)).max(initial=0.0)) if len(pts) else 0.0
     if 0.0 < spread < MIN_EXTENT:
         raise InputError(f"{source}: the points span only {spread:.3g}; the extent must be at least "
@@ -380,13 +382,23 @@ class SurfaceTarget(_PointSet):
         """``(distance, corresponding point)`` of each row of ``x`` to this target: the closest point on a
         mesh's triangles; for a cloud the nearest sample, at the distance beyond its sampling radius (0
         within it)."""
-        from ..geometry.surface_distance import cloud_distance
-
         if self.triangle_set is not None:
             c = self.triangle_set.closest(x)
             return c.distance, c.point
-        d, idx = cloud_distance(x, self.points, self.sampling_radius, self.kdtree)
-        return d, self.points[idx]
+        d, idx = self.kdtree.query(x)
+        return np.maximum(d - self.radius_at(idx), 0.0), self.points[idx]
+
+    def radius_at(self, idx: np.ndarray) -> np.ndarray:
+        """The sampling radius (:attr:`sampling_radius`) of the points ``idx`` only, unless all are known: a
+        few queries on a huge cloud do not pay for its every point's neighbours."""
+        if "sampling_radius" in self.__dict__:
+            return self.sampling_radius[idx]
+        k = min(CLOUD_SAMPLING_NEIGHBOURS, len(self.points) - 1)
+        if k < 1:
+            return np.zeros(len(idx))
+        distinct, back = np.unique(idx, return_inverse=True)
+        d, _ = self.kdtree.query(self.points[distinct], k=k + 1)
+        return d[:, -1][back]
 
     def __len__(self) -> int:
         return len(self.points)
@@ -485,9 +497,23 @@ def load_surface_target(path: str | os.PathLike[str], name: str | None = None) -
             return SurfaceTarget(validate_surface_points(vertices, str(p)), None, label)
     if suffix == ".obj" and not _obj_has_faces(raw):
         return SurfaceTarget(validate_surface_points(_read_obj_points(raw, p.name), str(p)), None, label)
-    mesh = read_mesh_bytes(raw, suffix[1:], p.name)
-    pts = validate_surface_points(mesh.vertices, str(p))
-    return SurfaceTarget(pts, target_triangles(mesh, p.name), label)
+    return mesh_target(read_mesh_bytes(raw, suffix[1:], p.name), p.name, label)
+
+
+def mesh_target(mesh, source: str, label: str) -> SurfaceTarget:
+    """A mesh target: its checked triangles (:func:`target_triangles`) on the vertices they use; vertices no
+    face uses are dropped with a warning (a stray one would stretch the box and count in the distances)."""
+    validate_surface_points(mesh.vertices, source)
+    tri = target_triangles(mesh, source)
+    used = np.unique(tri)
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    if len(used) < len(v):
+        warnings.warn(f"{source}: ignored {len(v) - len(used)} vertex(es) that no face of non-zero area uses", GsrWarning,
+                      stacklevel=2)
+        remap = np.full(len(v), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        v, tri = v[used], remap[tri]
+    return SurfaceTarget(validate_surface_points(v, source), tri, label)
 
 
 def target_triangles(mesh, source: str) -> np.ndarray:
@@ -530,8 +556,7 @@ def surface_target(source, name: str | None = None) -> SurfaceTarget:
     if isinstance(source, (str, os.PathLike)):
         return load_surface_target(source, name)
     if isinstance(source, PolyMesh):
-        pts = validate_surface_points(source.vertices, name or "mesh")
-        return SurfaceTarget(pts, target_triangles(source, name or "mesh"), name or "mesh")
+        return mesh_target(source, name or "mesh", name or "mesh")
     return SurfaceTarget(validate_surface_points(source, name or "points"), None, name or "points")
 
 

@@ -80,7 +80,9 @@ REWRITE_TOLERANCES = (1e-9, 1e-6, 1e-3)
 """How far (over the diagonal) the history rewrite may move control vertices, tried in turn; the
 rewrite must also keep the distance to the target within ``history_tolerance`` of the winner's."""
 DEFAULT_FIT_POINTS = 1500  # target points a fit scores when max_target_points is 0
-METRIC_POINTS = 20000  # area samples of a mesh target (or cloud points) the reported distances use
+METRIC_POINTS = 20000  # area samples of a mesh target the reported distances use (a cloud: all its points)
+METRIC_CHUNK = 50_000  # points whose foot points the reported distances find at once (bounded memory)
+SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 
 
@@ -562,19 +564,75 @@ def fit_points(target: SurfaceTarget, count: int) -> np.ndarray:
     return target.points[np.sort(np.random.default_rng(_TARGET_SEED).choice(n, count, replace=False))]
 
 
+def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRIC_POINTS,
+                   chunk: int = METRIC_CHUNK) -> np.ndarray:
+    """The exact distance of every row of ``points`` to the limit surface, ``chunk`` rows at a time (bounded
+    memory whatever their number).
+
+    Beyond ``seeds`` points, a fixed random ``seeds`` of them get the full search of
+    :meth:`LimitSurface.closest`, and every other point starts its Newton iteration from its nearest
+    seed's foot point, moved along the seed's tangent plane (a fresh search where that leaves the patch). A foot point so found is a point of
+    the surface, so its distance can only be too large, and by 1-Lipschitz continuity it is certainly
+    wrong where it exceeds the seed's distance plus the distance to the seed: those points, and the
+    points whose distance could still be the largest, get the full search too, so the maximum is exact."""
+    x = points
+    n = len(x)
+    if n <= seeds:
+        return np.concatenate([surface.closest(x[a:a + chunk]).distance for a in range(0, n, chunk)])
+    pick = np.sort(np.random.default_rng(_TARGET_SEED).choice(n, seeds, replace=False))
+    base = surface.closest(x[pick])
+    on = base.patch >= 0
+    su, sv = np.zeros((seeds, 3)), np.zeros((seeds, 3))
+    _, su[on], sv[on] = surface.evaluate(base.patch[on], base.u[on], base.v[on], derivatives=True)
+    tree = cKDTree(x[pick])
+    out = np.empty(n)
+    for a in range(0, n, chunk):
+        part = np.asarray(x[a:a + chunk], dtype=np.float64)
+        gap, j = tree.query(part)
+        hint = Hits(*(getattr(base, f.name)[j] for f in dataclasses.fields(Hits)))
+        # Newton starts at the seed's parameters stepped along its tangent plane towards the point (one
+        # iteration fewer)
+        r = part - base.point[j]
+        uu, uv, vv = (np.einsum("ij,ij->i", p, q) for p, q in ((su[j], su[j]), (su[j], sv[j]), (sv[j], sv[j])))
+        ru, rv = np.einsum("ij,ij->i", su[j], r), np.einsum("ij,ij->i", sv[j], r)
+        det = uu * vv - uv * uv
+        ok = det > 1e-14 * (uu * vv + 1e-300)
+        det = np.where(ok, det, 1.0)
+        u = np.where(ok, np.clip(hint.u + (vv * ru - uv * rv) / det, 0.0, 1.0), hint.u)
+        v = np.where(ok, np.clip(hint.v + (uu * rv - uv * ru) / det, 0.0, 1.0), hint.v)
+        hint = dataclasses.replace(hint, u=u, v=v)
+        d = surface.closest(part, hint).distance
+        wrong = np.flatnonzero(d > (base.distance[j] + gap) * (1.0 + 1e-9))
+        if wrong.size:
+            d[wrong] = surface.closest(part[wrong]).distance
+        out[a:a + chunk] = d
+    out[pick] = base.distance
+    # the exact maximum: search afresh from the largest down until no unchecked point can beat it
+    order = np.argsort(out)[::-1]
+    checked = 0
+    top = -math.inf
+    while checked < n and out[order[checked]] > top:
+        rows = order[checked:checked + max(256, checked)]
+        exact = surface.closest(x[rows]).distance
+        out[rows] = exact
+        top = max(top, float(exact.max()))
+        checked += len(rows)
+    return out
+
+
 def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, extra: np.ndarray | None = None,
-              density: int = 2) -> dict[str, float]:
+              density: int = 2, counts: np.ndarray | None = None) -> dict[str, float]:
     """Both directions between an exact limit surface and a target, over the target's diagonal:
-    ``data_to_fit`` from the points ``data`` (mean; the max also over ``extra``, e.g. a mesh's vertices)
-    to the surface, ``fit_to_data`` from the surface's area samples (``density`` more per patch side
-    than the polish uses) to the target, area-weighted."""
+    ``data_to_fit`` from the points ``data`` (every one, :func:`data_distances`, each counted ``counts``
+    times if given; the max also over ``extra``, e.g. a mesh's vertices) to the surface, ``fit_to_data``
+    from the surface's area samples (``density`` more per patch side than the polish uses) to the target,
+    area-weighted."""
     diag = target.diagonal
-    data, counts = np.unique(data, axis=0, return_counts=True)
-    weight = counts / counts.sum()
-    d_data = surface.closest(data).distance
+    d_data = data_distances(surface, data)
+    weight = np.full(len(d_data), 1.0 / len(d_data)) if counts is None else counts / counts.sum()
     top = float(d_data.max())
     if extra is not None and len(extra):
-        top = max(top, float(surface.closest(extra).distance.max()))
+        top = max(top, float(data_distances(surface, extra).max()))
     samples, area = surface.samples(density)
     d_fit, _ = target.closest(samples.point)
     return {"data_to_fit_mean": float(weight @ d_data / diag), "data_to_fit_max": top / diag,
@@ -596,15 +654,16 @@ def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, t
 
 def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
     """Distances between the control mesh's exact limit surface and the whole target (both directions,
-    :func:`two_sided`, on ``METRIC_POINTS`` area samples of a mesh or every point of a cloud up to that
-    many), and the paper's mixed mean distance of its level-``k`` limit vertices; all over the target's
-    bounding-box diagonal."""
+    :func:`two_sided`: from every point of a cloud, or from ``METRIC_POINTS`` area samples of a mesh and
+    (for the max) every one of its vertices), and the paper's mixed mean distance of its level-``k`` limit
+    vertices; all over the target's bounding-box diagonal."""
     layout = get_layout(control, config.boundary, config.limit_depth)
     surface = LimitSurface(layout, control.vertices)
     cloud = target.faces is None
-    data = fit_points(target, METRIC_POINTS)
-    extra = None if cloud else target.points[:METRIC_POINTS]
-    d = two_sided(surface, target, data, extra)
+    # a mesh's area samples repeat its vertices: each distinct point once, counted as often as drawn
+    data, counts = ((target.points, None) if cloud
+                    else np.unique(fit_points(target, METRIC_POINTS), axis=0, return_counts=True))
+    d = two_sided(surface, target, data, None if cloud else target.points, counts=counts)
     cc = get_catmull_clark(control, config.levels, config.boundary)
     diag = target.diagonal
     mixed = mixed_mean_distance(cc.limit_matrix @ control.vertices, target.points, diag, target.kdtree)
@@ -620,7 +679,7 @@ def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceCon
         "paper_fitness": float(diag / mixed) if mixed > 0 else math.inf,
         "distance_surface": f"exact limit surface ({layout.n_patches} B-spline patches, refinement depth "
                             f"{config.limit_depth} at extraordinary vertices)",
-        "n_data_samples": int(len(data)),
+        "n_data_samples": int(len(data) if counts is None else counts.sum()),
         "n_control_vertices": int(control.n_vertices),
         "n_control_faces": int(control.n_faces),
         "n_limit_vertices": int(cc.n_vertices),
@@ -682,9 +741,10 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     tgt = surface_target(target)
     config = (SurfaceConfig.preset(preset, **overrides) if config is None
               else dataclasses.replace(config, **overrides).validated())
-    placement = place_template(template, tgt, config)
+    search = tgt.subsampled(SEARCH_POINTS, _TARGET_SEED)  # the search sees a bounded sample; metrics see all
+    placement = place_template(template, search, config)
     tmpl = placement.mesh
-    problem = SurfaceProblem(tgt, config, tmpl)
+    problem = SurfaceProblem(search, config, tmpl)
     tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
     engine = start_or_resume(problem, _ga_config(config), seed, evaluator, checkpoint, tag)
     changes: list[tuple[int, float, tuple]] = []
@@ -718,12 +778,13 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     simplify_seconds = time.perf_counter() - polished_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
-    before = surface_metrics(problem.control_mesh(best), tgt, config) if final != best else metrics
+    before = surface_metrics(problem.control_mesh(best), search, config) if final != best else metrics
     metrics.update({
         "fitness": problem.evaluate(final, 0).cost,
         "fitness_kind": ("mixed mean distance / diagonal" if config.fitness == "mixed"
                          else "symmetric point-to-surface distance / diagonal"),
         "search_fitness": float(run.best_cost),
+        "n_search_points": len(search.points),
         "unpolished_symmetric_distance": before["symmetric_distance"],
         "unpolished_mean_distance": before["mean_distance"],
         "polish_seconds": polish_seconds,
