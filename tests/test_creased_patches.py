@@ -170,3 +170,33 @@ def test_creased_step_is_a_closed_solid_on_the_creased_limit(tmp_path, name):
     assert props.Mass() == pytest.approx(limit_volume(mesh), rel=2e-3)
     # the smooth limit encloses a clearly different volume: the solid follows the creases
     assert abs(limit_volume(mesh.with_creases(None)) - props.Mass()) > 1e-2 * props.Mass()
+
+
+# --- the GA's limit surface (geometry.limit_surface) follows the creases too ------------------------------------
+
+def _random_creases(mesh: PolyMesh, seed: int) -> PolyMesh:
+    """Darts, crease corners, semi-sharp and infinite edges anywhere."""
+    rng = np.random.default_rng(seed)
+    edges = mesh.topology.edges[rng.choice(mesh.topology.n_edges, 10, replace=False)]
+    return mesh.with_creases({tuple(map(int, e)): float(s) for e, s in zip(edges, [10, 1.5, 3, 0.5, 10, 10, 2, 2.5, 10, 1])})
+
+
+LIMIT_MESHES = {**STEP_MESHES, "torus, semi-sharp meridians": lambda: meridians(wavy_torus(), sharpness=2.5),
+                "genus 1, creased rims": lambda: rims(genus_template(1)),
+                "genus 2, random creases": lambda: _random_creases(subdivision.refine(genus_template(2), 1), 5)}
+
+
+@pytest.mark.parametrize("name", list(LIMIT_MESHES))
+def test_the_limit_surface_of_the_search_is_the_creased_one(name):
+    from gsr_cad.geometry.limit_surface import LimitSurface
+
+    mesh = LIMIT_MESHES[name]()
+    surface = LimitSurface.of(mesh)
+    for level in (1, 3):
+        points = subdivision.get_catmull_clark(mesh, level).limit_matrix @ mesh.vertices
+        assert surface.closest(points).distance.max() < 1e-12 * mesh.diagonal
+    # the limit points of a finer level fall between pending corners only near irregular crease vertices
+    points = subdivision.get_catmull_clark(mesh, 4).limit_matrix @ mesh.vertices
+    assert surface.closest(points).distance.max() < 1e-6 * mesh.diagonal
+    smooth = LimitSurface.of(mesh.with_creases(None))
+    assert smooth.closest(points).distance.max() > 1e-2 * mesh.diagonal
