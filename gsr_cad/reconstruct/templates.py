@@ -14,10 +14,15 @@ shell is closed by one dilation and its cavities filled, and ``genus = component
 complex. The voxel estimate closes holes narrower than about three cells (``resolution`` cells along the
 longest axis), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
 in :func:`genus_metrics`.
+
+:func:`feature_genomes` builds starts for the search from the target's feature lines (a greedy sequence of rim
+creases, creases and edge loops, each kept when the search's own cost falls).
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -25,10 +30,13 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import ConfigError
-from ..geometry.polymesh import PolyMesh, unit_cube
+from ..errors import ConfigError, GsrError, OpError
+from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh, unit_cube
 from ..geometry.subdivision import get_catmull_clark
-from ..ops.mesh import edge_loop, hole, inset
+from ..ops.mesh import Crease, CreaseRim, EdgeLoop, edge_loop, hole, inset
+from ..ops.mesh_conn import mesh_view
+from ..ops.mesh_kernel import edge_ring
+from .features import CreaseProposals
 from .inputs import SurfaceTarget
 
 MAX_TEMPLATE_GENUS = 8
@@ -203,3 +211,76 @@ def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
     size = np.maximum(extent, 1e-6 * float(extent.max()))
     factor = size / np.maximum(lhi - llo, 1e-12)
     return mesh.with_vertices((v - (llo + lhi) / 2.0) * factor + (lo + hi) / 2.0)
+
+
+# --- feature-driven starts --------------------------------------------------------------------------------------
+
+GREEDY_GAIN = 0.98
+"""A greedy step is kept when it lowers the cost below this fraction of the current one."""
+GREEDY_CANDIDATES = 6
+"""Proposed faces (R) and edges (C) tried per greedy step, nearest to the feature lines first."""
+
+
+def _ring_representatives(mesh: PolyMesh) -> list[int]:
+    """One edge (op index) per distinct ring of opposite edges that an edge loop (L) could cut."""
+    conn = mesh_view(mesh).conn
+    seen: set[int] = set()
+    out = []
+    for e in range(len(conn.edges)):
+        if e in seen:
+            continue
+        try:
+            ring = edge_ring(conn, e)[0]
+        except OpError:
+            continue
+        seen.update(ring)
+        out.append(e)
+    return out
+
+
+def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
+    """Topology edge indices as the ops number edges (by vertex pair)."""
+    conn = mesh_view(mesh).conn
+    pairs = mesh.topology.edges[np.asarray(topology_edges, dtype=np.int64)].tolist() if topology_edges else []
+    return [conn.edge_id[(min(a, b), max(a, b))] for a, b in pairs if (min(a, b), max(a, b)) in conn.edge_id]
+
+
+def feature_genomes(template: PolyMesh, proposals: CreaseProposals, score: Callable[[tuple], float],
+                    kinds: str, seconds: float) -> list[tuple]:
+    """Starts for the search built greedily from the target's feature lines: from ``template``, each step
+    tries an infinitely sharp rim crease (R) on each proposed face, an infinitely sharp crease (C) on each
+    proposed edge and an edge loop (L) across each distinct edge ring (the letters in ``kinds`` only), and
+    keeps the op whose genome ``score`` (the search's cost) likes best while it gains (``GREEDY_GAIN``),
+    for at most ``seconds``. Returns the genomes of the steps kept, longest first (empty when none gains)."""
+    started = time.perf_counter()
+    genome: tuple = ()
+    mesh, best = template, score(())
+    kept: list[tuple] = []
+    while time.perf_counter() - started < seconds:
+        candidates: list = []
+        if "R" in kinds:
+            candidates += [CreaseRim(f, SHARPNESS_INFINITE) for f in proposals.faces(mesh)[:GREEDY_CANDIDATES]]
+        if "C" in kinds:
+            candidates += [Crease(e, SHARPNESS_INFINITE)
+                           for e in _op_edges(mesh, proposals.edges(mesh)[:GREEDY_CANDIDATES])]
+        if "L" in kinds:
+            candidates += [EdgeLoop(e) for e in _ring_representatives(mesh)]
+        step = None
+        for op in candidates:
+            if time.perf_counter() - started > seconds:
+                break
+            try:
+                nxt = op.apply(mesh)
+            except GsrError:
+                continue
+            if nxt.creases == mesh.creases and nxt.n_vertices == mesh.n_vertices:
+                continue  # a crease already there
+            cost = score(genome + (op,))
+            if cost < GREEDY_GAIN * best and (step is None or cost < step[0]):
+                step = (cost, op, nxt)
+        if step is None:
+            break
+        best, op, mesh = step
+        genome += (op,)
+        kept.append(genome)
+    return kept[::-1]
