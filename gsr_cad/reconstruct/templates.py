@@ -21,6 +21,7 @@ creases, creases and edge loops, each kept when the search's own cost falls).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -217,6 +218,8 @@ def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
 
 GREEDY_GAIN = 0.98
 """A greedy step is kept when it lowers the cost below this fraction of the current one."""
+GREEDY_STEPS = 8
+"""Greedy steps at most (each adds one op)."""
 GREEDY_CANDIDATES = 6
 """Proposed faces (R) and edges (C) tried per greedy step, nearest to the feature lines first."""
 
@@ -246,17 +249,19 @@ def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
 
 
 def feature_genomes(template: PolyMesh, proposals: CreaseProposals, score: Callable[[tuple], float],
-                    kinds: str, seconds: float) -> list[tuple]:
+                    kinds: str, seconds: float | None = None, steps: int = GREEDY_STEPS) -> list[tuple]:
     """Starts for the search built greedily from the target's feature lines: from ``template``, each step
     tries an infinitely sharp rim crease (R) on each proposed face, an infinitely sharp crease (C) on each
     proposed edge and an edge loop (L) across each distinct edge ring (the letters in ``kinds`` only), and
     keeps the op whose genome ``score`` (the search's cost) likes best while it gains (``GREEDY_GAIN``),
-    for at most ``seconds``. Returns the genomes of the steps kept, longest first (empty when none gains)."""
+    for at most ``steps`` steps and ``seconds`` (None: no time limit, the result then depends on the inputs
+    alone). Returns the genomes of the steps kept, longest first (empty when none gains)."""
     started = time.perf_counter()
+    deadline = math.inf if seconds is None else started + seconds
     genome: tuple = ()
     mesh, best = template, score(())
     kept: list[tuple] = []
-    while time.perf_counter() - started < seconds:
+    while len(kept) < steps and time.perf_counter() < deadline:
         candidates: list = []
         if "R" in kinds:
             candidates += [CreaseRim(f, SHARPNESS_INFINITE) for f in proposals.faces(mesh)[:GREEDY_CANDIDATES]]
@@ -267,7 +272,7 @@ def feature_genomes(template: PolyMesh, proposals: CreaseProposals, score: Calla
             candidates += [EdgeLoop(e) for e in _ring_representatives(mesh)]
         step = None
         for op in candidates:
-            if time.perf_counter() - started > seconds:
+            if time.perf_counter() > deadline:
                 break
             try:
                 nxt = op.apply(mesh)
