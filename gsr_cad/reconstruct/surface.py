@@ -216,10 +216,10 @@ class SurfaceProblem:
     # --- GA protocol -------------------------------------------------------------------------------------
     def seed_genomes(self) -> list[tuple]:
         """Starts from the target's feature lines when crease ops are on (:func:`feature_genomes`), built in at
-        most a quarter of ``max_seconds`` (30 s without a limit)."""
+        most a quarter of ``max_seconds`` (when set)."""
         if self.proposals is None:
             return []
-        budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else 30.0
+        budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else None
         return feature_genomes(self.template, self.proposals, self.cost, self.config.op_kinds, budget)
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
