@@ -248,44 +248,54 @@ def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
     return [conn.edge_id[(min(a, b), max(a, b))] for a, b in pairs if (min(a, b), max(a, b)) in conn.edge_id]
 
 
-def feature_genomes(template: PolyMesh, proposals: CreaseProposals, score: Callable[[tuple], float],
-                    kinds: str, seconds: float | None = None, steps: int = GREEDY_STEPS) -> list[tuple]:
+def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
+                    score: Callable[[tuple], tuple[float, PolyMesh | None]], kinds: str, seconds: float | None = None,
+                    steps: int = GREEDY_STEPS) -> list[tuple]:
     """Starts for the search built greedily from the target's feature lines: from ``template``, each step
     tries an infinitely sharp rim crease (R) on each proposed face, an infinitely sharp crease (C) on each
-    proposed edge and an edge loop (L) across each distinct edge ring (the letters in ``kinds`` only), and
-    keeps the op whose genome ``score`` (the search's cost) likes best while it gains (``GREEDY_GAIN``),
-    for at most ``steps`` steps and ``seconds`` (None: no time limit, the result then depends on the inputs
-    alone). Returns the genomes of the steps kept, longest first (empty when none gains)."""
+    proposed edge and on all of them at once, and an edge loop (L) across each distinct edge ring (the
+    letters in ``kinds`` only), and keeps the ops whose genome ``score`` likes best while it gains
+    (``GREEDY_GAIN``), for at most ``steps`` steps and ``seconds`` (None: no time limit, the result then
+    depends on the inputs alone). ``score(genome)`` is the search's cost and the control mesh after its
+    polish (None when the genome fails), on which the next step's edges are proposed. Returns the genomes
+    of the steps kept, longest first (empty when none gains)."""
     started = time.perf_counter()
     deadline = math.inf if seconds is None else started + seconds
     genome: tuple = ()
-    mesh, best = template, score(())
+    best, polished = score(())
+    mesh = template
     kept: list[tuple] = []
     while len(kept) < steps and time.perf_counter() < deadline:
-        candidates: list = []
+        candidates: list[tuple] = []
         if "R" in kinds:
-            candidates += [CreaseRim(f, SHARPNESS_INFINITE) for f in proposals.faces(mesh)[:GREEDY_CANDIDATES]]
+            candidates += [(CreaseRim(f, SHARPNESS_INFINITE),) for f in proposals.faces(polished or mesh)
+                           [:GREEDY_CANDIDATES]]
         if "C" in kinds:
-            candidates += [Crease(e, SHARPNESS_INFINITE)
-                           for e in _op_edges(mesh, proposals.edges(mesh)[:GREEDY_CANDIDATES])]
+            open_edges = [e for e in proposals.edges(polished or mesh) if mesh.edge_sharpness[e] < SHARPNESS_INFINITE]
+            creases = [Crease(e, SHARPNESS_INFINITE) for e in _op_edges(mesh, open_edges)]
+            candidates += [(op,) for op in creases[:GREEDY_CANDIDATES]]
+            if len(creases) > 1:
+                candidates.append(tuple(creases))
         if "L" in kinds:
-            candidates += [EdgeLoop(e) for e in _ring_representatives(mesh)]
+            candidates += [(EdgeLoop(e),) for e in _ring_representatives(mesh)]
         step = None
-        for op in candidates:
+        for ops in candidates:
             if time.perf_counter() > deadline:
                 break
             try:
-                nxt = op.apply(mesh)
+                nxt = mesh
+                for op in ops:
+                    nxt = op.apply(nxt)
             except GsrError:
                 continue
             if nxt.creases == mesh.creases and nxt.n_vertices == mesh.n_vertices:
-                continue  # a crease already there
-            cost = score(genome + (op,))
+                continue  # creases already there
+            cost, after = score(genome + ops)
             if cost < GREEDY_GAIN * best and (step is None or cost < step[0]):
-                step = (cost, op, nxt)
+                step = (cost, ops, nxt, after)
         if step is None:
             break
-        best, op, mesh = step
-        genome += (op,)
+        best, ops, mesh, polished = step
+        genome += ops
         kept.append(genome)
     return kept[::-1]
