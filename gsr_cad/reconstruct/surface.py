@@ -220,7 +220,16 @@ class SurfaceProblem:
         if self.proposals is None:
             return []
         budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else None
-        return feature_genomes(self.template, self.proposals, self.cost, self.config.op_kinds, budget)
+
+        def scored(genome: tuple) -> tuple[float, PolyMesh | None]:  # structures compared nearly converged
+            try:
+                mesh = self.control_mesh(genome)
+                vertices, cost = self.fit(mesh, max(self.config.final_polish_rounds, 1), min_gain=0.95)
+            except GsrError:
+                return math.inf, None
+            return cost, mesh.with_vertices(vertices)
+
+        return feature_genomes(self.template, self.proposals, scored, self.config.op_kinds, budget)
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
         """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
