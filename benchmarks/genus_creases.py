@@ -138,6 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = [f"# Creases and holes (budget {args.seconds:g} s per target, seed {args.seed}, load {load_average():.1f})",
              "", "| target | genus (target / result) | target->fit mean | max | fit->target mean | max | ops | s |",
              "|---|---|---|---|---|---|---|---|"]
+    print("\n".join(lines), flush=True)
     for name in names:
         r = run(name, available[name], args.seconds, args.seed)
         lines.append(f"| {name} | {r['target_genus']} / {r['result_genus']} | {r['to_fit_mean']:.2e} | "
