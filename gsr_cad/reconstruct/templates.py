@@ -219,7 +219,9 @@ def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
 GREEDY_GAIN = 0.98
 """A greedy step is kept when it lowers the cost below this fraction of the current one."""
 GREEDY_STEPS = 8
-"""Greedy steps at most (each adds one op)."""
+"""Greedy steps at most (each adds one op, or one crease per proposed edge)."""
+GREEDY_EVALUATIONS = 60
+"""Candidate genomes scored at most, over all steps."""
 GREEDY_CANDIDATES = 6
 """Proposed faces (R) and edges (C) tried per greedy step, nearest to the feature lines first."""
 
@@ -250,13 +252,13 @@ def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
 
 def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
                     score: Callable[[tuple], tuple[float, PolyMesh | None]], kinds: str, seconds: float | None = None,
-                    steps: int = GREEDY_STEPS) -> list[tuple]:
+                    steps: int = GREEDY_STEPS, evaluations: int = GREEDY_EVALUATIONS) -> list[tuple]:
     """Starts for the search built greedily from the target's feature lines: from ``template``, each step
     tries an infinitely sharp rim crease (R) on each proposed face, an infinitely sharp crease (C) on each
     proposed edge and on all of them at once, and an edge loop (L) across each distinct edge ring (the
     letters in ``kinds`` only), and keeps the ops whose genome ``score`` likes best while it gains
-    (``GREEDY_GAIN``), for at most ``steps`` steps and ``seconds`` (None: no time limit, the result then
-    depends on the inputs alone). ``score(genome)`` is the search's cost and the control mesh after its
+    (``GREEDY_GAIN``), for at most ``steps`` steps, ``evaluations`` scored candidates and ``seconds`` (None:
+    no time limit, the result then depends on the inputs alone). ``score(genome)`` is the search's cost and the control mesh after its
     polish (None when the genome fails), on which the next step's edges are proposed. Returns the genomes
     of the steps kept, longest first (empty when none gains)."""
     started = time.perf_counter()
@@ -280,7 +282,7 @@ def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
             candidates += [(EdgeLoop(e),) for e in _ring_representatives(mesh)]
         step = None
         for ops in candidates:
-            if time.perf_counter() > deadline:
+            if time.perf_counter() > deadline or evaluations <= 0:
                 break
             try:
                 nxt = mesh
@@ -290,6 +292,7 @@ def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
                 continue
             if nxt.creases == mesh.creases and nxt.n_vertices == mesh.n_vertices:
                 continue  # creases already there
+            evaluations -= 1
             cost, after = score(genome + ops)
             if cost < GREEDY_GAIN * best and (step is None or cost < step[0]):
                 step = (cost, ops, nxt, after)
