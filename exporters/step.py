@@ -10,9 +10,11 @@ than the few OCP modules used here). Validation reads the file back with OCP's S
 every span.
 
 Surfaces: the Catmull-Clark limit surface as bicubic B-spline patches
-(:func:`gsr_cad.geometry.patches.limit_patches`: exact where the control mesh is regular, fitted within
-the tolerance elsewhere; ``config["patch_tolerance"]``, default 1e-4 of the diagonal), one face per patch,
-sewn (``BRepBuilderAPI_Sewing``) into a shell, and into a solid when the control mesh is closed. The
+(:func:`gsr_cad.geometry.patches.limit_patches`: exact where the control mesh is regular, beside straight
+infinitely sharp creases included, fitted within the tolerance elsewhere; ``config["patch_tolerance"]``,
+default 1e-4 of the diagonal), one face per patch, sewn (``BRepBuilderAPI_Sewing``) into a shell, and into a
+solid when the control mesh is closed. Patches on either side of a crease share their edge curve, so a crease
+is an exact C0 edge of the solid. The
 achieved deviations go into the STEP header's description and a sidecar ``*.step.json``. Validation
 reads the STEP back with OCP, checks the solid (``BRepCheck_Analyzer``, one closed shell, positive volume),
 and projects exact limit points onto the faces they belong to with OCCT's own projector

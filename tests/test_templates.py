@@ -116,3 +116,50 @@ def test_benchmark_targets_have_their_genus(capsys):
         assert t.is_closed and t.is_manifold and (2 - t.euler_characteristic) // 2 == expected[name], name
     assert genus_creases.main(["--targets", "teapot"]) == 2
     assert "unknown targets teapot" in capsys.readouterr().err
+
+
+# --- feature-driven starts ---------------------------------------------------------------------------------------
+
+def _split_cylinder() -> PolyMesh:
+    c = trimesh.creation.cylinder(radius=1.0, height=2.0)
+    v, f = trimesh.remesh.subdivide_to_size(c.vertices, c.faces, max_edge=0.25)
+    return PolyMesh.from_faces(v, f)
+
+
+def test_ring_representatives_give_one_edge_per_loop():
+    from gsr_cad.geometry.polymesh import unit_cube
+    from gsr_cad.ops.mesh import EdgeLoop
+    from gsr_cad.reconstruct.templates import _ring_representatives
+
+    cube = unit_cube()
+    reps = _ring_representatives(cube)
+    assert len(reps) == 3
+    # the three loops cut the cube into 8 blocks: 26 vertices
+    mesh = cube
+    for _ in range(3):
+        mesh = EdgeLoop(_ring_representatives(mesh)[-1]).apply(mesh)
+    assert len(_ring_representatives(mesh)) == 6
+
+
+def test_feature_genomes_crease_the_caps_and_keep_gaining():
+    from gsr_cad.reconstruct.config import SurfaceConfig
+    from gsr_cad.reconstruct.inputs import surface_target
+    from gsr_cad.reconstruct.surface import SurfaceProblem
+    from gsr_cad.reconstruct.templates import feature_genomes
+
+    target = surface_target(_split_cylinder())
+    template = fitted_template(target, 0)
+    problem = SurfaceProblem(target, SurfaceConfig.preset("default", op_kinds="VLCR", max_seconds=360), template)
+    seeds = problem.seed_genomes()  # a quarter of max_seconds at most
+    assert seeds and all(seeds[0][:len(g)] == g for g in seeds)
+    # both caps' rims creased infinitely sharp (the feature lines), loops for the round section
+    letters = "".join(op.letter for op in seeds[0])
+    assert letters.count("R") == 2 and "L" in letters
+    mesh = problem.control_mesh(seeds[0])
+    rims = np.flatnonzero(mesh.edge_sharpness >= 10)
+    heights = mesh.vertices[mesh.topology.edges[rims]][..., 2]
+    assert np.allclose(np.abs(heights), np.abs(heights).max(), rtol=0.2)  # on the top and bottom only
+    costs = [problem.fit(problem.control_mesh(g), 20, min_gain=0.95)[1] for g in [(), *seeds[::-1]]]
+    assert all(b < 0.98 * a for a, b in zip(costs, costs[1:]))
+    assert costs[-1] < 0.05 * costs[0]
+    assert feature_genomes(template, problem.proposals, lambda g: (problem.cost(g), None), "V") == []

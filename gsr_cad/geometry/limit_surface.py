@@ -8,7 +8,9 @@ subdivided one more step, three of the four children of a quad at an extraordina
 regular patches, and the fourth stays pending. After ``depth`` such steps the pending quads (an area
 ``4**-depth`` of the first ones) are kept as flat pairs of triangles on their limit corners. Two rings of
 margin keep every vertex used exactly as the global refinement computes it (the artificial boundary of a
-cut-out only perturbs vertices within a quarter of a ring of it).
+cut-out only perturbs vertices within a quarter of a ring of it). Creases are carried level by level
+(:func:`~gsr_cad.geometry.patches.crease_stencils`: a quad beside an infinitely sharp straight crease is
+regular with phantom points across it; one touching any other sharp edge is refined again).
 
 Everything is a fixed sparse map of the control vertices (:class:`LimitLayout`, built once per
 connectivity), so a point at fixed ``(patch, u, v)`` is a linear combination of control vertices and a
@@ -28,9 +30,9 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .patches import bspline_stencils
+from .patches import crease_stencils, phantom_rows
 from .polymesh import PolyMesh
-from .subdivision import CatmullClark, get_catmull_clark
+from .subdivision import CatmullClark, get_catmull_clark, refined_sharpness
 from .surface_distance import TriangleSet
 
 DEPTH = 5
@@ -80,31 +82,34 @@ def build_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> L
     """The :class:`LimitLayout` of ``mesh``'s connectivity (module docstring)."""
     cc = get_catmull_clark(mesh, 1, boundary)
     topo = cc.topology
+    sharp = refined_sharpness(mesh, topo) if mesh.crease_values.size else None  # creases, level by level
     P = sp.csr_matrix(cc.refine_matrix)
     faces = cc.corners.reshape(-1, 4)
     pending = np.arange(len(faces))
     blocks, depths = [], []
     for step in range(depth + 1):
-        regular, ids = bspline_stencils(topo, pending)
+        regular, ids, phantom = crease_stencils(topo, pending, sharp)
         if regular.size:
-            blocks.append(P[ids.reshape(-1)])
+            rows = P[ids.reshape(-1)]
+            blocks.append(phantom_rows(phantom) @ rows if phantom.any() else rows)
             depths.append(np.full(regular.size, step))
         pending = np.setdiff1d(pending, regular)
         if pending.size == 0 or step == depth:
             break
-        keep = np.flatnonzero(_ring_faces(topo, pending, 2))
-        sub_faces = faces[keep]
-        used, local = np.unique(sub_faces, return_inverse=True)
-        sub = PolyMesh(np.zeros((used.size, 3)), local.ravel(), np.arange(0, local.size + 1, 4))
-        step_cc = CatmullClark(sub, 1, boundary)
+        keep, used, sub = _cut_out(topo, faces, _ring_faces(topo, pending, 2))
+        sub_sharp = None if sharp is None else _carried(topo, sharp, sub.topology, used)
+        step_cc = CatmullClark(sub, 1, boundary, sharpness=sub_sharp)
         P = sp.csr_matrix(step_cc.refine_matrix @ P[used])
+        if sharp is not None:
+            sharp = refined_sharpness(sub.topology, step_cc.topology, sub_sharp)
         topo = step_cc.topology
         faces = step_cc.corners.reshape(-1, 4)
         where = np.searchsorted(keep, pending)  # pending faces' positions in the cut-out
         pending = (4 * where[:, None] + np.arange(4)).ravel()  # their children
     if pending.size:
-        lim = CatmullClark(PolyMesh(np.zeros((P.shape[0], 3)), faces.ravel(), np.arange(0, faces.size + 1, 4)),
-                           0, boundary).limit_matrix
+        last = PolyMesh(np.zeros((P.shape[0], 3)), faces.ravel(), np.arange(0, faces.size + 1, 4))
+        lim = CatmullClark(last, 0, boundary, sharpness=None if sharp is None else
+                           _carried(topo, sharp, last.topology, np.arange(P.shape[0]))).limit_matrix
         quads = faces[pending]
         used, local = np.unique(quads, return_inverse=True)
         local = local.reshape(-1, 4)
@@ -116,6 +121,29 @@ def build_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> L
     poles = sp.vstack(blocks, format="csr") if blocks else sp.csr_matrix((0, mesh.n_vertices))
     dep = np.concatenate(depths) if depths else np.zeros(0, dtype=np.int64)
     return LimitLayout(poles, dep, corners, tris, mesh.n_vertices)
+
+
+def _cut_out(topo, faces: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, PolyMesh]:
+    """The faces ``mask`` selects as a mesh of their own (indices kept, vertices used, the mesh), grown by
+    the whole fan of any vertex where the selection would pinch (two fans meeting at a point)."""
+    while True:
+        keep = np.flatnonzero(mask)
+        used, local = np.unique(faces[keep], return_inverse=True)
+        sub = PolyMesh(np.zeros((used.size, 3)), local.ravel(), np.arange(0, local.size + 1, 4))
+        pinched = used[sub.topology.vertex_fans > 1]
+        if pinched.size == 0:
+            return keep, used, sub
+        mask = mask.copy()
+        mask[topo.he_face[np.isin(topo.he_origin, pinched)]] = True
+
+
+def _carried(topo, sharpness: np.ndarray, sub_topo, used: np.ndarray) -> np.ndarray:
+    """Sharpness of ``sub_topo``'s edges (vertex ``i`` there is ``used[i]`` of ``topo``) from ``topo``'s."""
+    n = topo.n_vertices
+    keys = np.sort(topo.edges, axis=1) @ np.array([n, 1])
+    order = np.argsort(keys)
+    sub_keys = np.sort(used[sub_topo.edges], axis=1) @ np.array([n, 1])
+    return sharpness[order[np.searchsorted(keys, sub_keys, sorter=order)]]
 
 
 class _LayoutCache:

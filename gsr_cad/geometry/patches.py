@@ -16,6 +16,11 @@ points along the face normal (outwards on a closed, outward-oriented mesh).
 
 * A quad whose four corners are interior vertices of valence 4 is an exact uniform bicubic B-spline
   patch over its 4 x 4 neighbourhood; it is written as its Bezier patch (4 x 4 poles, no interior knots).
+  Creases (edge sharpness after the first step) count: a corner with a semi-sharp edge, a dart or a crease
+  corner makes the quad fitted; a side on an infinitely sharp crease that runs straight through regular
+  vertices keeps the quad exact, with the row across the crease replaced by its phantom ``2 p - q``
+  (:func:`crease_stencils`). Either way neighbours across a crease share their edge curve: the patches
+  meet as exact C0 edges at the crease's angle.
 * Every other quad (an extraordinary vertex, a former n-gon's centre, the boundary) is fitted: with
   ``k`` uniform spans per direction, every edge curve is fitted to the exact limit points on that edge
   alone, ends fixed at the limit corners, so that both neighbours share the same curve and the patches
@@ -39,11 +44,12 @@ from collections import OrderedDict
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import ConfigError, InputError
 from . import bspline
-from .polymesh import PolyMesh
-from .subdivision import get_catmull_clark
+from .polymesh import SHARPNESS_INFINITE, PolyMesh
+from .subdivision import get_catmull_clark, refined_sharpness
 
 Boundary = Literal["all", "corners"]
 DEGREE = 3
@@ -184,11 +190,52 @@ def limit_grids(mesh: PolyMesh, level: int, boundary: Boundary = "all") -> np.nd
 def bspline_stencils(topo, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The regular quads among ``faces`` of an all-quad topology (half-edges ``4 f + k``) and their uniform
     bicubic B-spline control grids ``(n_regular, 4, 4)`` of vertex indices (``[i, j]``, ``i`` along u from
-    corner 0 to corner 1). A quad is regular when its four corners are interior vertices of valence 4."""
+    corner 0 to corner 1). A quad is regular when its four corners are interior vertices of valence 4
+    (edge sharpness ignored: :func:`crease_stencils` honours it)."""
+    quads, ids, _ = crease_stencils(topo, faces)
+    return quads, ids
+
+
+def _regular_crease_vertices(topo, sharp: np.ndarray, infinite: np.ndarray, good: np.ndarray) -> np.ndarray:
+    """Vertices where the limit is a tensor B-spline on either side of a crease: interior, valence 4, no
+    sharp edge or exactly two, infinitely sharp and opposite each other (the crease runs straight through)."""
+    nv = topo.n_vertices
+    count = np.bincount(topo.edges[sharp].ravel(), minlength=nv)
+    semi = np.zeros(nv, dtype=bool)
+    semi[topo.edges[sharp & ~infinite].ravel()] = True
+    ok = good & ((count == 0) | ((count == 2) & ~semi))
+    org, nx, tw, edge = topo.he_origin, topo.he_next, topo.he_twin, topo.he_edge
+    h = np.flatnonzero(sharp[edge] & ok[org] & (count[org] == 2))
+    opposite = nx[tw[nx[tw[h]]]]  # two steps around the (interior, valence-4) origin
+    ok[org[h[~sharp[edge[opposite]]]]] = False
+    return ok
+
+
+def crease_stencils(topo, faces: np.ndarray, sharpness: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quads among ``faces`` of an all-quad topology whose limit is one uniform bicubic B-spline patch,
+    given the edge ``sharpness`` of this level (None: smooth), with their control grids ``(n, 4, 4)`` of
+    vertex indices (``[i, j]``, ``i`` along u from corner 0 to corner 1) and ``(n, 4)`` phantom sides.
+
+    Every corner must be an interior vertex of valence 4 with no sharp edge, or a regular crease vertex
+    (two infinitely sharp edges, opposite). A side on an infinite crease then behaves as a boundary of the
+    B-spline: the row of points across it is the phantom ``2 p_side - p_inner`` (the crease rules are the
+    cubic curve rule along it, which that reflection reproduces and keeps at every level); :func:`phantom_rows`
+    turns the flags into the linear map. Near a semi-sharp edge a quad is not regular at this level.
+    """
     org, nx, tw = topo.he_origin, topo.he_next, topo.he_twin
     good = (topo.vertex_valence == 4) & ~topo.vertex_is_boundary
     faces = np.asarray(faces, dtype=np.int64)
-    quads = faces[good[org.reshape(-1, 4)[faces]].all(axis=1)]
+    he = 4 * faces[:, None] + np.arange(4)
+    if sharpness is not None and np.any(np.asarray(sharpness) > 0):
+        s = np.asarray(sharpness, dtype=np.float64)
+        sharp = s > 0
+        good = _regular_crease_vertices(topo, sharp, s >= SHARPNESS_INFINITE, good)
+        side_sharp = sharp[topo.he_edge[he]]
+    else:
+        side_sharp = np.zeros(he.shape, dtype=bool)
+    keep = good[org[he]].all(axis=1)
+    quads, phantom = faces[keep], side_sharp[keep]
     ids = np.empty((quads.size, 4, 4), dtype=np.int64)
     # corner k of the quad, the two points across its side k (next to c_k, next to c_k+1), the diagonal at c_k
     inner = [(1, 1), (2, 1), (2, 2), (1, 2)]
@@ -196,22 +243,52 @@ def bspline_stencils(topo, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for k in range(4):
         h = 4 * quads + k
         tt = tw[h]
-        s = tw[nx[tt]]
+        s_ = tw[nx[tt]]
         (xi, xj), (yi, yj), (wi, wj) = across[k]
         ids[:, inner[k][0], inner[k][1]] = org[h]
         ids[:, xi, xj] = org[nx[nx[tt]]]
         ids[:, yi, yj] = org[nx[nx[nx[tt]]]]
-        ids[:, wi, wj] = org[nx[nx[nx[s]]]]
-    return quads, ids
+        ids[:, wi, wj] = org[nx[nx[nx[s_]]]]
+    return quads, ids, phantom
+
+
+# the grid points a phantom side k replaces, and the two (weights 2, -1) they are reflected from
+_PHANTOM = []
+for _k, (_row, _near, _far) in enumerate([((slice(None), 0), (slice(None), 1), (slice(None), 2)),
+                                         ((3, slice(None)), (2, slice(None)), (1, slice(None))),
+                                         ((slice(None), 3), (slice(None), 2), (slice(None), 1)),
+                                         ((0, slice(None)), (1, slice(None)), (2, slice(None)))]):
+    _flat = np.arange(16).reshape(4, 4)
+    _PHANTOM.append((_flat[_row], _flat[_near], _flat[_far]))
+
+
+def phantom_rows(phantom: np.ndarray) -> sp.csr_matrix:
+    """``(16 n, 16 n)`` map from the gathered grid points of :func:`crease_stencils` (row ``16 p + 4 i + j``)
+    to the B-spline control points: identity, except that the points across a phantom side are
+    ``2 p_side - p_inner`` (at most two opposite sides per quad are phantom, so the sources are genuine)."""
+    n = len(phantom)
+    rows, cols, vals = [np.arange(16 * n)], [np.arange(16 * n)], [np.ones(16 * n)]
+    for k, (target, near, far) in enumerate(_PHANTOM):
+        p = np.flatnonzero(phantom[:, k])
+        if p.size == 0:
+            continue
+        base = 16 * p[:, None]
+        t = (base + target).ravel()
+        rows += [t, t, t]
+        cols += [t, (base + near).ravel(), (base + far).ravel()]
+        vals += [-np.ones(t.size), np.full(t.size, 2.0), -np.ones(t.size)]
+    r, c, v = (np.concatenate(x) for x in (rows, cols, vals))
+    return sp.csr_matrix((v, (r, c)), shape=(16 * n, 16 * n))
 
 
 def _regular_patches(mesh: PolyMesh, boundary: str) -> tuple[np.ndarray, np.ndarray]:
-    """Regular level-1 quads and their Bezier poles ``(n_regular, 4, 4, 3)``."""
+    """Regular level-1 quads (creases honoured) and their Bezier poles ``(n_regular, 4, 4, 3)``."""
     cc = get_catmull_clark(mesh, 1, boundary)
-    quads, ids = bspline_stencils(cc.topology, np.arange(len(mesh.corners)))
+    sharpness = refined_sharpness(mesh, cc.topology) if mesh.crease_values.size else None
+    quads, ids, phantom = crease_stencils(cc.topology, np.arange(len(mesh.corners)), sharpness)
     if quads.size == 0:
         return quads, np.zeros((0, 4, 4, 3))
-    g = (cc.refine_matrix @ mesh.vertices)[ids]
+    g = (phantom_rows(phantom) @ (cc.refine_matrix @ mesh.vertices)[ids.reshape(-1)]).reshape(-1, 4, 4, 3)
     return quads, np.einsum("ai,pijc,bj->pabc", _BSPLINE_TO_BEZIER, g, _BSPLINE_TO_BEZIER)
 
 

@@ -427,6 +427,17 @@ def _refined_sharpness(t: Topology, refined: Topology, s: np.ndarray) -> np.ndar
     return out
 
 
+def refined_sharpness(mesh: PolyMesh | Topology, refined: Topology, sharpness: np.ndarray | None = None) -> np.ndarray:
+    """Edge sharpness of ``refined``, the topology one step of ``mesh`` makes (``CatmullClark(mesh, 1).topology``,
+    half-edge ``4 h + k`` in quad ``h``): halves of a creased edge get ``s - 1`` (infinite stays), new edges 0.
+    ``sharpness`` defaults to a PolyMesh's own :attr:`~PolyMesh.edge_sharpness`."""
+    topo = mesh.topology if isinstance(mesh, PolyMesh) else mesh
+    if sharpness is None:
+        sharpness = mesh.edge_sharpness if isinstance(mesh, PolyMesh) else np.zeros(topo.n_edges)
+    s = _check_sharpness(sharpness, topo)
+    return np.zeros(refined.n_edges) if s is None else _refined_sharpness(topo, refined, s)
+
+
 class _SharpVertices:
     """Per vertex of one level: how many of its edges are sharp (boundary edges count as infinitely sharp),
     the far ends of the first two, and whether one of them is an interior sharp edge (the only vertices

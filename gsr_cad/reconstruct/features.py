@@ -8,7 +8,8 @@ apart. A control edge is proposed when the limit points of both its ends and of 
 ``radius`` of that set: then the limit curve of the edge runs along a feature line. A control face is
 proposed for a rim crease (op R) when the farthest limit midpoint of its edges from the feature lines is
 within ``FACE_SLACK`` times the best face's: the faces whose outlines follow the feature lines most closely
-(a cylinder's caps, a nut's end rings), even while the smooth limit is still far from them.
+(a cylinder's caps, a nut's end rings), even while the smooth limit is still far from them; faces whose rim is
+already infinitely sharp all round are left out.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import ConfigError
-from ..geometry.polymesh import PolyMesh
+from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh
 from ..geometry.subdivision import get_catmull_clark
 
 FEATURE_ANGLE_DEG = 30.0
@@ -125,5 +126,10 @@ class CreaseProposals:
         limit = get_catmull_clark(control, 1, self.boundary).limit_matrix @ control.vertices
         d, _ = self._tree.query(limit[topo.n_vertices:topo.n_vertices + topo.n_edges])
         worst = np.maximum.reduceat(d[topo.he_edge], control.offsets[:-1])
+        # a rim already creased all round (the sharp edges' limit lies on the feature line) is no proposal
+        open_edge = (control.edge_sharpness < SHARPNESS_INFINITE) & ~topo.edge_is_boundary
+        worst[~np.logical_or.reduceat(open_edge[topo.he_edge], control.offsets[:-1])] = np.inf
+        if not np.isfinite(worst).any():
+            return []
         ok = np.flatnonzero(worst <= FACE_SLACK * worst.min())
         return ok[np.argsort(worst[ok], kind="stable")].tolist()

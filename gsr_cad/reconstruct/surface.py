@@ -73,7 +73,7 @@ from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
 from .result import Result
-from .templates import fitted_template, genus_metrics, target_genus
+from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
 _STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
 REWRITE_TOLERANCES = (1e-9, 1e-6, 1e-3)
@@ -169,6 +169,7 @@ class SurfaceProblem:
         proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
                      if set("CR") & set(config.op_kinds) else None)
         self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
+        self.proposals = proposals
         self.evaluated: dict[int, tuple[float, tuple]] = {}
         """Per control-vertex count, the cheapest genome scored in this process (for :func:`front`)."""
 
@@ -215,6 +216,23 @@ class SurfaceProblem:
         return state
 
     # --- GA protocol -------------------------------------------------------------------------------------
+    def seed_genomes(self) -> list[tuple]:
+        """Starts from the target's feature lines when crease ops are on (:func:`feature_genomes`), built in at
+        most a quarter of ``max_seconds`` (when set)."""
+        if self.proposals is None:
+            return []
+        budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else None
+
+        def scored(genome: tuple) -> tuple[float, PolyMesh | None]:  # structures compared nearly converged
+            try:
+                mesh = self.control_mesh(genome)
+                vertices, cost = self.fit(mesh, max(self.config.final_polish_rounds, 1), min_gain=0.95)
+            except GsrError:
+                return math.inf, None
+            return cost, mesh.with_vertices(vertices)
+
+        return feature_genomes(self.template, self.proposals, scored, self.config.op_kinds, budget)
+
     def random_gene(self, rng: np.random.Generator, prefix: tuple):
         """A random op (kinds ``op_kinds``, sizes from the op ranges) for the mesh ``prefix`` builds."""
         return random_op(rng, self.walk(prefix)[1], self.diag, self.config.op_kinds, self.ranges, *self.creases)

@@ -14,10 +14,16 @@ shell is closed by one dilation and its cavities filled, and ``genus = component
 complex. The voxel estimate closes holes narrower than about three cells (``resolution`` cells along the
 longest axis), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
 in :func:`genus_metrics`.
+
+:func:`feature_genomes` builds starts for the search from the target's feature lines (a greedy sequence of rim
+creases, creases and edge loops, each kept when the search's own cost falls).
 """
 
 from __future__ import annotations
 
+import math
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -25,10 +31,13 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import ConfigError
-from ..geometry.polymesh import PolyMesh, unit_cube
+from ..errors import ConfigError, GsrError, OpError
+from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh, unit_cube
 from ..geometry.subdivision import get_catmull_clark
-from ..ops.mesh import edge_loop, hole, inset
+from ..ops.mesh import Crease, CreaseRim, EdgeLoop, edge_loop, hole, inset
+from ..ops.mesh_conn import mesh_view
+from ..ops.mesh_kernel import edge_ring
+from .features import CreaseProposals
 from .inputs import SurfaceTarget
 
 MAX_TEMPLATE_GENUS = 8
@@ -203,3 +212,93 @@ def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
     size = np.maximum(extent, 1e-6 * float(extent.max()))
     factor = size / np.maximum(lhi - llo, 1e-12)
     return mesh.with_vertices((v - (llo + lhi) / 2.0) * factor + (lo + hi) / 2.0)
+
+
+# --- feature-driven starts --------------------------------------------------------------------------------------
+
+GREEDY_GAIN = 0.98
+"""A greedy step is kept when it lowers the cost below this fraction of the current one."""
+GREEDY_STEPS = 8
+"""Greedy steps at most (each adds one op, or one crease per proposed edge)."""
+GREEDY_EVALUATIONS = 60
+"""Candidate genomes scored at most, over all steps."""
+GREEDY_CANDIDATES = 6
+"""Proposed faces (R) and edges (C) tried per greedy step, nearest to the feature lines first."""
+
+
+def _ring_representatives(mesh: PolyMesh) -> list[int]:
+    """One edge (op index) per distinct ring of opposite edges that an edge loop (L) could cut."""
+    conn = mesh_view(mesh).conn
+    seen: set[int] = set()
+    out = []
+    for e in range(len(conn.edges)):
+        if e in seen:
+            continue
+        try:
+            ring = edge_ring(conn, e)[0]
+        except OpError:
+            continue
+        seen.update(ring)
+        out.append(e)
+    return out
+
+
+def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
+    """Topology edge indices as the ops number edges (by vertex pair)."""
+    conn = mesh_view(mesh).conn
+    pairs = mesh.topology.edges[np.asarray(topology_edges, dtype=np.int64)].tolist() if topology_edges else []
+    return [conn.edge_id[(min(a, b), max(a, b))] for a, b in pairs if (min(a, b), max(a, b)) in conn.edge_id]
+
+
+def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
+                    score: Callable[[tuple], tuple[float, PolyMesh | None]], kinds: str, seconds: float | None = None,
+                    steps: int = GREEDY_STEPS, evaluations: int = GREEDY_EVALUATIONS) -> list[tuple]:
+    """Starts for the search built greedily from the target's feature lines: from ``template``, each step
+    tries an infinitely sharp rim crease (R) on each proposed face, an infinitely sharp crease (C) on each
+    proposed edge and on all of them at once, and an edge loop (L) across each distinct edge ring (the
+    letters in ``kinds`` only), and keeps the ops whose genome ``score`` likes best while it gains
+    (``GREEDY_GAIN``), for at most ``steps`` steps, ``evaluations`` scored candidates and ``seconds`` (None:
+    no time limit, the result then depends on the inputs alone). ``score(genome)`` is the search's cost and the control mesh after its
+    polish (None when the genome fails), on which the next step's edges are proposed. Returns the genomes
+    of the steps kept, longest first (empty when none gains)."""
+    started = time.perf_counter()
+    deadline = math.inf if seconds is None else started + seconds
+    genome: tuple = ()
+    best, polished = score(())
+    mesh = template
+    kept: list[tuple] = []
+    while len(kept) < steps and time.perf_counter() < deadline:
+        candidates: list[tuple] = []
+        if "R" in kinds:
+            candidates += [(CreaseRim(f, SHARPNESS_INFINITE),) for f in proposals.faces(polished or mesh)
+                           [:GREEDY_CANDIDATES]]
+        if "C" in kinds:
+            open_edges = [e for e in proposals.edges(polished or mesh) if mesh.edge_sharpness[e] < SHARPNESS_INFINITE]
+            creases = [Crease(e, SHARPNESS_INFINITE) for e in _op_edges(mesh, open_edges)]
+            candidates += [(op,) for op in creases[:GREEDY_CANDIDATES]]
+            if len(creases) > 1:
+                candidates.append(tuple(creases))
+        if "L" in kinds:
+            candidates += [(EdgeLoop(e),) for e in _ring_representatives(mesh)]
+        step = None
+        for ops in candidates:
+            if time.perf_counter() > deadline or evaluations <= 0:
+                break
+            try:
+                nxt = mesh
+                for op in ops:
+                    nxt = op.apply(nxt)
+            except GsrError:
+                continue
+            if nxt.creases == mesh.creases and nxt.n_vertices == mesh.n_vertices:
+                continue  # creases already there
+            evaluations -= 1
+            cost, after = score(genome + ops)
+            if cost < GREEDY_GAIN * best and (step is None or cost < step[0]):
+                step = (cost, ops, nxt, after)
+        if step is None:
+            break
+        best, ops, mesh, polished = step
+        genome += ops
+        kept.append(genome)
+    return kept[::-1]
