@@ -360,7 +360,7 @@ class SurfaceConfig:
         length=True)
     refine_max_faces: int = _field(1600, "Most faces the refinement may grow the cage to.")
     refine_share: float = _field(
-        0.5,
+        0.8,
         "Share of --max-seconds left to the refinement when it is on (the search stops earlier by as much), in "
         "[0, 1).")
     population: int = _field(100, "Individuals kept from one generation to the next.")

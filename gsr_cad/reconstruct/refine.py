@@ -4,16 +4,22 @@ After the search, the winner's cage is refined level by level. Each level measur
 residual of the current cage (the target's points -> their foot points on the exact limit surface, the
 surface's area samples -> the target) and attributes it to the control vertices by the weights with which
 each point depends on them (its sparse row of the limit map), then to the faces around them. The
-candidates aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
-extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the face
-with the largest error and a bevel (B) of the edge whose faces carry most error where the cage bends. Each
-candidate is applied to the fitted cage and its vertices fitted by a few least-squares rounds (the
-search's polish, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, which keeps every face sound);
-the one that gains most per added control vertex is kept and fitted further. Levels stop once the
-distance reaches the goal, the time or face budget runs out, or no candidate gains.
+proposals aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
+extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the
+face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
+bends; and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
+connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
+proposal is fitted by a few rounds of the adaptive least-squares fit
+(:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
+of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most per
+added control vertex is kept and fitted further. Levels stop once the distance reaches the goal, the
+time or face budget runs out, or no proposal gains.
 
-The ops are the paper's, recorded in the genome in order with the vertex moves of each level's fit
-before the next op; every level is a point of the accuracy/complexity front.
+History: the structural ops replay on the geometry the search left them (the template's, moved by the
+search's ops), where they apply cleanly, followed by the moves of the final fit (in stages when the
+straight path would fold a face); when those moves cannot replay, a level's ops follow the previous
+level's moves instead (after moves onto the limit cage, :func:`limit_cage`, where the fitted quads are
+too skewed for them). Every level is a point of the accuracy/complexity front.
 """
 
 from __future__ import annotations
@@ -34,12 +40,11 @@ from ..ops.mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, TranslateVertex
 from ..ops.mesh_conn import mesh_view
 from ..ops.mesh_kernel import edge_ring
 
-TRIAL_ROUNDS = 4  # least-squares rounds a candidate gets before it is compared
+TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
 STIFFNESS = 0.1  # first stiffness of the adaptive fits (see SurfaceProblem.fit)
-POINTS_PER_VERTEX = 12  # target points the refinement scores per control vertex (at least the search's)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -40,6 +40,16 @@ into the shortest equivalent history found, whose op parameters place the vertic
 then an extrude and the template's corners moved, rather than two loops and sixteen moves), provided its
 distance to the target exceeds the winner's by at most ``history_tolerance`` (of the diagonal).
 
+Refinement (beyond the paper). With ``refine`` (the default; off in the ``paper`` preset) the winner's cage
+is then grown where the residual is, coarse to fine (:mod:`~gsr_cad.reconstruct.refine`): edge loops,
+extrudes, insets and bevels aimed at the faces carrying the largest two-sided error, and splits of the
+whole cage by edge loops that keep its limit surface, each fitted by the adaptive least-squares fit
+(sparse, stiffness annealed, every face kept sound), until ``max_distance`` (else ``refine_until``) is met,
+the time (``refine_share`` of ``max_seconds``) or ``refine_max_faces`` runs out, or no op gains. Every level
+joins the accuracy/complexity front (``metrics["front"]``, one record per level in
+``metrics["refinement"]``), measured alike: a fine mesh target's triangles both ways (see
+``REFINE_EXACT_TRIANGLES``).
+
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
 """
@@ -797,7 +807,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     run: RunResult = engine.run(on_generation=on_generation, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
     pareto = front(problem.evaluated)
-    if config.max_distance is not None:
+    if config.max_distance is not None and not refining:  # (the refinement picks on its own measure)
         meets = [entry for entry in pareto if entry[1] <= config.max_distance]
         if meets and meets[0][2] != best:
             best = meets[0][2]  # the simplest cage that meets the tolerance
@@ -820,8 +830,9 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     if refining and final and not hurry():
         goal = config.max_distance if config.max_distance is not None else config.refine_until
         deadline = started + config.max_seconds if config.max_seconds else None
-        growth = _refined(problem, final, goal, deadline, pareto, should_stop)
-        final, pareto = growth.genome, growth.front
+        growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
+        if growth is not None:
+            final, pareto = growth.genome, growth.front
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
@@ -891,10 +902,13 @@ class Growth(NamedTuple):
 
 
 def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: float | None,
-             searched: list[tuple[int, float, tuple]], should_stop: Callable[[], bool] | None) -> Growth:
+             searched: list[tuple[int, float, tuple]], should_stop: Callable[[], bool] | None,
+             pick: bool) -> Growth | None:
     """The searched winner ``genome`` grown by :func:`~gsr_cad.reconstruct.refine.refine` until ``goal``
-    (``deadline``: a ``perf_counter`` value); the search's front entries simpler than it are re-measured by
-    the refinement's measure (after the search's evaluation polish) and joined by the levels."""
+    (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
+    measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
+    tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
+    the winner is within ``goal`` already."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -902,6 +916,9 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
                             exact_back=exact)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
+    start = grower.fit(grower.control_mesh(genome), 0)[1]
+    if start <= goal:  # nothing to grow: the search's front and measure stand
+        return None
     found: dict[int, tuple[float, tuple]] = {}
 
     def record(mesh: PolyMesh, cost: float, history: tuple) -> None:
@@ -909,17 +926,26 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         if n not in found or cost < found[n][0]:
             found[n] = (cost, history)
 
-    final, levels = refine(grower, genome, goal, deadline, config.refine_max_faces, record, should_stop)
-    start = levels[0].control.n_vertices
+    winner = grower.control_mesh(genome).n_vertices
     for n, _, g in searched:
-        if n < start and n not in found and not (should_stop is not None and should_stop()):
-            with contextlib.suppress(GsrError):
-                record(grower.control_mesh(g), grower.fit(grower.control_mesh(g), config.polish_rounds)[1], g)
-    pareto = front(found)
+        if n >= winner or (should_stop is not None and should_stop()):
+            break
+        with contextlib.suppress(GsrError):
+            mesh = grower.control_mesh(g)
+            v, cost = grower.fit(mesh, config.polish_rounds)
+            moves, _, refused = grower._moves(mesh, v)
+            if refused:
+                record(mesh, grower.fit(mesh, 0)[1], g)
+            else:
+                record(mesh, cost, g + moves)
+    meets = [entry for entry in front(found) if entry[1] <= goal]
+    if pick and meets:
+        return Growth(meets[0][2], meets[0][1], front(found), [])
+    final, levels = refine(grower, genome, goal, deadline, config.refine_max_faces, record, should_stop)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
-    return Growth(final, levels[-1].cost, pareto, rows)
+    return Growth(final, levels[-1].cost, front(found), rows)
 
 
 def template_from_config(config: dict[str, Any]) -> PolyMesh:
