@@ -361,6 +361,8 @@ class SurfaceProblem:
         best_v, best_cost, last = V, math.inf, math.inf
         hint = None
         rel, fails, stiff = self.config.polish_damping, 0, stiffness
+        margin = _FIT_MARGIN if adaptive else 1.0
+        lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         smooth = None
         for r in range(max(rounds, 0) + 1):
@@ -411,7 +413,7 @@ class SurfaceProblem:
                                                   check_finite=False).reshape(n, 3) - V
                 except (np.linalg.LinAlgError, ValueError, RuntimeError):
                     break
-                trial = _sound_step(mesh, V, step, normals0, _FIT_MARGIN if adaptive else 1.0)
+                trial = _sound_step(mesh, V, step, normals0, margin, lenient)
                 if trial is not None:
                     V, moved = trial, True
                     break
@@ -550,9 +552,10 @@ def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
 
 
 def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
-                margin: float = 1.0) -> np.ndarray | None:
+                margin: float = 1.0, lenient: np.ndarray | None = None) -> np.ndarray | None:
     """``V`` moved by ``step`` (or half or a quarter of it), the vertices of faces it would make unsound
-    (:func:`_unsound_faces` with ``margin``) held where they are, in up to ``_FREEZE_PASSES`` passes, provided at least
+    (:func:`_unsound_faces` with ``margin``, without it for the faces ``lenient``: those that were already
+    inside the margin where the fit started) held where they are, in up to ``_FREEZE_PASSES`` passes, provided at least
     ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound."""
     if not np.all(np.isfinite(step)):
         return None
@@ -562,7 +565,10 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
     for fraction in (1.0, 0.5, 0.25):
         s = fraction * step
         for _ in range(_FREEZE_PASSES):
-            bad = _unsound_faces(mesh.with_vertices(V + s), normals0, margin)
+            moved = mesh.with_vertices(V + s)
+            bad = _unsound_faces(moved, normals0, margin)
+            if lenient is not None and lenient.any():
+                bad[lenient] = _unsound_faces(moved, normals0)[lenient]
             if not bad.any():
                 return V + s
             s = s.copy()
