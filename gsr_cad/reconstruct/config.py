@@ -119,7 +119,8 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "polish_niches": (1, 100), "polish_damping": (0, 1000), "history_tolerance": (0, 1),
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
                   "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
-                  "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99)}
+                  "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
+                  "refine_seconds": (0, 2_592_000)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
 
 
@@ -363,6 +364,9 @@ class SurfaceConfig:
         0.8,
         "Share of --max-seconds left to the refinement when it is on (the search stops earlier by as much), in "
         "[0, 1).")
+    refine_seconds: float = _field(
+        300.0,
+        "Most seconds the refinement may take when no --max-seconds is given; 0: no limit.")
     population: int = _field(100, "Individuals kept from one generation to the next.")
     initial_population: int = _field(100, "Random genomes drawn in generation 0.")
     min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")
@@ -425,7 +429,8 @@ class SurfaceConfig:
         _check(self, ("mutation_rate", "delete_rate", "append_rate", "inward_rate"), _rate, "lie in [0, 1]")
         _check(self, ("polish_gain",), lambda v: _real(v) and 0.0 < v <= 1.0, "lie in (0, 1]")
         _check(self, ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
-                      "max_seconds", "history_tolerance"), _finite_non_negative, "be a finite number >= 0")
+                      "max_seconds", "history_tolerance", "refine_until", "refine_share", "refine_seconds"),
+               _finite_non_negative, "be a finite number >= 0")
         _check(self, ("max_scale_factor",), lambda v: _finite_non_negative(v) and v >= 1.0, "be a finite number >= 1")
         _check_units(self)
         _ranges(self, SURFACE_LIMITS)

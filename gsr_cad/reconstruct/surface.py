@@ -45,9 +45,9 @@ is then grown where the residual is, coarse to fine (:mod:`~gsr_cad.reconstruct.
 extrudes, insets and bevels aimed at the faces carrying the largest two-sided error, and splits of the
 whole cage by edge loops that keep its limit surface, each fitted by the adaptive least-squares fit
 (sparse, stiffness annealed, every face kept sound), until ``max_distance`` (else ``refine_until``) is met,
-the time (``refine_share`` of ``max_seconds``) or ``refine_max_faces`` runs out, or no op gains. Every level
-joins the accuracy/complexity front (``metrics["front"]``, one record per level in
-``metrics["refinement"]``), measured alike: a fine mesh target's triangles both ways (see
+the time (``refine_share`` of ``max_seconds``, else ``refine_seconds``) or ``refine_max_faces`` runs out,
+or no op gains. Every level joins the accuracy/complexity front (``metrics["front"]``, one record per
+level in ``metrics["refinement"]``), measured alike: a fine mesh target's triangles both ways (see
 ``REFINE_EXACT_TRIANGLES``).
 
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
@@ -835,7 +835,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     growth = None
     if refining and final and not hurry():
         goal = config.max_distance if config.max_distance is not None else config.refine_until
-        deadline = started + config.max_seconds if config.max_seconds else None
+        deadline = (started + config.max_seconds if config.max_seconds
+                    else time.perf_counter() + config.refine_seconds if config.refine_seconds else None)
         growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
         if growth is not None:
             final, pareto = growth.genome, growth.front
