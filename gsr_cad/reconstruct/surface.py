@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import itertools
 import math
 import os
 import time
@@ -759,8 +760,16 @@ class SurfaceResult(Result):
 
 
 def _letters(genome: tuple) -> str:
-    """The op letters of ``genome`` ("?" for an op without one)."""
-    return "".join(getattr(op, "letter", "?") for op in genome)
+    """The op letters of ``genome`` ("?" for an op without one); past ``_MAX_LETTERS`` (a refined history
+    of hundreds of moves) run-length encoded instead ("L9 V296")."""
+    letters = "".join(getattr(op, "letter", "?") for op in genome)
+    if len(letters) <= _MAX_LETTERS:
+        return letters
+    runs = [(k, len(list(g))) for k, g in itertools.groupby(letters)]
+    return " ".join(k if n == 1 else f"{k}{n}" for k, n in runs)
+
+
+_MAX_LETTERS = 900  # result.json strings are at most 1000 characters
 
 
 def _pick_snapshots(changes: list[tuple[int, float, tuple]], count: int) -> list[tuple[int, float, tuple]]:
