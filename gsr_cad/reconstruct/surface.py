@@ -924,7 +924,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
     measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
-    the winner is within ``goal`` already."""
+    the winner is within ``goal`` already and no tolerance was asked."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -933,7 +933,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
                             exact_back=exact)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
     start = grower.fit(grower.control_mesh(genome), 0)[1]
-    if start <= goal:  # nothing to grow: the search's front and measure stand
+    if start <= goal and not pick:  # nothing to grow: the search's front and measure stand
         return None
     found: dict[int, tuple[float, tuple]] = {}
 
