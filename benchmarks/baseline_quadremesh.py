@@ -63,9 +63,12 @@ def baseline(target: SurfaceTarget, vertices: int, config: SurfaceConfig | None 
             best = cage
     if best is None:
         return Baseline(None, {}, time.perf_counter() - start)
-    problem = SurfaceProblem(target, config, best)
-    fitted = best.with_vertices(problem.fit(best, FIT_ROUNDS, min_gain=0.999)[0])
-    return Baseline(fitted, surface_metrics(fitted, target, config), time.perf_counter() - start)
+    try:  # a remesh the subdivision refuses (non-manifold) is no baseline
+        problem = SurfaceProblem(target, config, best)
+        fitted = best.with_vertices(problem.fit(best, FIT_ROUNDS, min_gain=0.999)[0])
+        return Baseline(fitted, surface_metrics(fitted, target, config), time.perf_counter() - start)
+    except GsrError:
+        return Baseline(None, {}, time.perf_counter() - start)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -118,7 +118,9 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "polish_rounds": (0, 1000), "final_polish_rounds": (0, 1000), "polish_every": (0, 1_000_000),
                   "polish_niches": (1, 100), "polish_damping": (0, 1000), "history_tolerance": (0, 1),
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
-                  "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000)}
+                  "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
+                  "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
+                  "refine_seconds": (0, 2_592_000)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
 
 
@@ -352,6 +354,23 @@ class SurfaceConfig:
     history_tolerance: float = _field(
         1e-6,
         "How much the history rewrite may raise the distance to the target; 0: only exact rewrites.", length=True)
+    refine: bool = _field(
+        True,
+        "After the search, grow the cage where the residual is (edge loops, extrudes, insets, bevels aimed at the "
+        "largest two-sided error, each least-squares fitted) until --max-distance or --refine-until is met, the "
+        "time runs out or no op gains; off: the searched cage as it is.")
+    refine_until: float = _field(
+        2e-3,
+        "Distance (mean of both directions) at which the refinement stops when no --max-distance is given.",
+        length=True)
+    refine_max_faces: int = _field(1600, "Most faces the refinement may grow the cage to.")
+    refine_share: float = _field(
+        0.8,
+        "Share of --max-seconds left to the refinement when it is on (the search stops earlier by as much), in "
+        "[0, 1).")
+    refine_seconds: float = _field(
+        300.0,
+        "Most seconds the refinement may take when no --max-seconds is given; 0: no limit.")
     population: int = _field(100, "Individuals kept from one generation to the next.")
     initial_population: int = _field(100, "Random genomes drawn in generation 0.")
     min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")
@@ -378,7 +397,8 @@ class SurfaceConfig:
     def preset(cls, name: str = "default", **overrides: Any) -> SurfaceConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
         paper = dict(template_fit="cube", fitness="mixed", move_range=1.0, extrude_range=1.0, inward_rate=0.0,
-                     polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0, simplify_history=False)
+                     polish_rounds=0, final_polish_rounds=0, polish_every=0, threshold=0.0, simplify_history=False,
+                     refine=False)
         return _preset(cls, "surface", name, paper, overrides)
 
     def validated(self) -> SurfaceConfig:
@@ -392,7 +412,8 @@ class SurfaceConfig:
         _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
-                      "max_duplicates", "generations", "stall_generations"), _whole(0), "be a whole number >= 0")
+                      "max_duplicates", "generations", "stall_generations", "refine_max_faces"), _whole(0),
+               "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
                       "n_parents", "max_duplicates", "generations", "max_control_faces"), _whole(1), "be at least 1")
         if self.max_distance is not None and not (_real(self.max_distance) and math.isfinite(self.max_distance)
@@ -412,7 +433,8 @@ class SurfaceConfig:
         _check(self, ("mutation_rate", "delete_rate", "append_rate", "inward_rate"), _rate, "lie in [0, 1]")
         _check(self, ("polish_gain",), lambda v: _real(v) and 0.0 < v <= 1.0, "lie in (0, 1]")
         _check(self, ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
-                      "max_seconds", "history_tolerance"), _finite_non_negative, "be a finite number >= 0")
+                      "max_seconds", "history_tolerance", "refine_until", "refine_share", "refine_seconds"),
+               _finite_non_negative, "be a finite number >= 0")
         _check(self, ("max_scale_factor",), lambda v: _finite_non_negative(v) and v >= 1.0, "be a finite number >= 1")
         _check_units(self)
         _ranges(self, SURFACE_LIMITS)

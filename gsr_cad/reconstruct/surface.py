@@ -40,13 +40,25 @@ into the shortest equivalent history found, whose op parameters place the vertic
 then an extrude and the template's corners moved, rather than two loops and sixteen moves), provided its
 distance to the target exceeds the winner's by at most ``history_tolerance`` (of the diagonal).
 
+Refinement (beyond the paper). With ``refine`` (the default; off in the ``paper`` preset) the winner's cage
+is then grown where the residual is, coarse to fine (:mod:`~gsr_cad.reconstruct.refine`): edge loops,
+extrudes, insets and bevels aimed at the faces carrying the largest two-sided error, and splits of the
+whole cage by edge loops that keep its limit surface, each fitted by the adaptive least-squares fit
+(sparse, stiffness annealed, every face kept sound), until ``max_distance`` (else ``refine_until``) is met,
+the time (``refine_share`` of ``max_seconds``, else ``refine_seconds``) or ``refine_max_faces`` runs out,
+or no op gains. Every level joins the accuracy/complexity front (``metrics["front"]``, one record per
+level in ``metrics["refinement"]``), measured alike: a fine mesh target's triangles both ways (see
+``REFINE_EXACT_TRIANGLES``).
+
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import itertools
 import math
 import os
 import time
@@ -57,6 +69,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from ..errors import ConfigError, GsrError, InputError, OpError
@@ -72,6 +85,7 @@ from .config import SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
+from .refine import refine
 from .result import Result
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
@@ -148,8 +162,11 @@ class _Pairs(NamedTuple):
 class SurfaceProblem:
     """The GA problem for one target: random ops, repair, the cost of a genome and the polish."""
 
-    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh):
+    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh, exact_back: bool = False):
         self.target = target
+        self.exact_back = exact_back and target.faces is not None
+        """Surface samples -> a mesh target's triangles (not its sampled points) in the fit (the refinement:
+        a fine mesh's chords are its surface)."""
         self.config = config
         self.template = template
         self.diag = target.diagonal
@@ -311,6 +328,9 @@ class SurfaceProblem:
         beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
         """
+        if self.exact_back:
+            d, near = self.target.closest(X)
+            return d, near, np.ones(len(X))
         d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
         near = self._cloud[idx]
         gap = np.linalg.norm(near - X, axis=1)
@@ -335,7 +355,8 @@ class SurfaceProblem:
         J2, y2 = _rows(surface.rows(pairs.samples), pairs.samples.normal, pairs.goal, pairs.weight)
         return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
-    def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None) -> tuple[np.ndarray, float]:
+    def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None,
+            adaptive: bool = False, stiffness: float = 1.0) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
@@ -344,11 +365,14 @@ class SurfaceProblem:
         minimising, with both directions weighted as in the symmetric distance, the point-to-plane
         residuals (along the limit surface's normals, which lets the surface slide along itself and
         converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals, plus
-        ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A step the
-        mesh ops would refuse (a folded or flipped face) is halved, twice, then damped tenfold more (up to
-        three times), then the rounds stop. Rounds also
-        stop once one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure
-        that cannot fit the target stops after a few rounds, one that can keeps converging.
+        ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A step is
+        kept sound (:func:`_sound_step`: the vertices of faces the mesh ops would refuse are held); when no
+        part of it is, the step is made smoother (its umbrella Laplacian over the cage penalised) and more
+        damped, tenfold each time, up to ``_SMOOTH_TRIES`` times, then the rounds stop. Rounds also stop once
+        one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure that cannot
+        fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
+        far from the target): a round that raises the cost is undone and retried ten times more damped (up
+        to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -357,34 +381,62 @@ class SurfaceProblem:
         normals0 = mesh.face_newell
         best_v, best_cost, last = V, math.inf, math.inf
         hint = None
+        rel, fails, stiff = self.config.polish_damping, 0, stiffness
+        margin = _FIT_MARGIN if adaptive else 1.0
+        lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
+        saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+        smooth = None
         for r in range(max(rounds, 0) + 1):
             surface = LimitSurface(layout, V)
             pairs, cost = self._pairs(surface, hint)
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
-            if r == rounds or cost == 0.0 or cost >= min_gain * last:
+            if r == rounds or cost == 0.0:
                 break
-            last = cost
-            J, y = self._system(surface, pairs)
-            H = (J.T @ J).toarray()
-            g = J.T @ y
-            lam = self.config.polish_damping * max(float(np.trace(H)) / len(H), 1e-300)
-            moved = False
-            # Levenberg-Marquardt: a step the ops would refuse (a folded or flipped face) is halved, twice,
-            # then the damping rises tenfold, up to three times
-            for _ in range(4):
-                try:
-                    step = scipy.linalg.solve(H + lam * np.eye(len(H)), g + lam * V.ravel(), assume_a="pos",
-                                              check_finite=False).reshape(n, 3) - V
-                except (np.linalg.LinAlgError, ValueError):
+            if adaptive and saved is not None and cost >= saved[3]:
+                fails += 1  # the step made it worse: back to where it started, damped more
+                if fails > _RETRIES:
                     break
-                for fraction in (1.0, 0.5, 0.25):
-                    trial = V + fraction * step
-                    if np.all(np.isfinite(trial)) and _sound(mesh.with_vertices(trial), normals0):
-                        V, moved = trial, True
-                        break
-                if moved:
+                rel *= 10.0
+                stiff = min(stiff * 4.0, max(stiffness, _STIFF_END))
+                V, H, g, _ = saved
+            else:
+                if cost >= min_gain * last:
+                    break
+                last, fails = cost, 0
+                if adaptive and saved is not None:
+                    rel = max(rel / 4.0, self.config.polish_damping)
+                    stiff = max(stiff * _STIFF_RELAX, _STIFF_END)
+                J, y = self._system(surface, pairs)
+                H = (J.T @ J).tocsc() if adaptive else (J.T @ J).toarray()
+                g = J.T @ y
+                saved = (V, H, g, cost)
+            scale = max(float(H.diagonal().sum()) / H.shape[0], 1e-300)
+            lam = rel * scale
+            moved = False
+            x = V.ravel()  # minimises |J x - y|^2 + lam |x - V|^2 (+ mu |Lap (x - V)|^2)
+            for attempt in range(_SMOOTH_TRIES + 1):
+                mu = stiff if adaptive else 0.0
+                if attempt:
+                    mu = max(mu, _SMOOTH_START) * 10.0 ** (attempt - (0 if adaptive else 1))
+                if mu > 0 and smooth is None:
+                    smooth = _smoothing(mesh)
+                try:
+                    if adaptive:  # sparse: cages of hundreds of vertices
+                        A = (H + lam * sp.identity(3 * n, format="csc") + (mu * scale) * smooth).tocsc()
+                        step = spla.spsolve(A, g + (A - H) @ x).reshape(n, 3) - V
+                    else:
+                        A = H + lam * np.eye(3 * n)
+                        if mu > 0:
+                            A += (mu * scale) * smooth.toarray()
+                        step = scipy.linalg.solve(A, g + (A - H) @ x, assume_a="pos",
+                                                  check_finite=False).reshape(n, 3) - V
+                except (np.linalg.LinAlgError, ValueError, RuntimeError):
+                    break
+                trial = _sound_step(mesh, V, step, normals0, margin, lenient)
+                if trial is not None:
+                    V, moved = trial, True
                     break
                 lam *= 10.0
             if not moved:
@@ -397,25 +449,23 @@ class SurfaceProblem:
 
         The ops refuse a move that would fold a face, and whether one does can depend on the order. First
         each vertex gets one op, in passes while they make progress; if some vertex is left, the whole
-        move is instead made in 2 or 4 equal stages (every vertex a step per stage, following the straight
-        path between the two meshes); if that fails too, the first attempt's partial moves stand.
+        move is instead made in 2, 4, 8 or 16 equal stages (every vertex a step per stage, following the
+        straight path between the two meshes, each stage in passes); if that fails too, the first attempt's
+        partial moves stand.
         """
         moves, current, refused = moves_to(state, goal, 1e-12 * self.diag)
         if not refused:
             return moves, current, 0
-        delta = goal - state.vertices
-        todo = [int(i) for i in np.flatnonzero(np.abs(delta).max(axis=1) > 1e-12 * self.diag)]
-        for stages in (2, 4):
+        start = state.vertices
+        for stages in (2, 4, 8, 16):
             trial, steps = state, []
-            try:
-                for _ in range(stages):
-                    for i in todo:
-                        op = TranslateVertex(i, tuple(float(x) for x in delta[i] / stages))
-                        trial = op.apply(trial)
-                        steps.append(op)
-            except OpError:
-                continue
-            return tuple(steps), trial, 0
+            for k in range(1, stages + 1):
+                stage, trial, left = moves_to(trial, start + (k / stages) * (goal - start), 1e-12 * self.diag)
+                steps += stage
+                if left:
+                    break
+            else:
+                return tuple(steps), trial, 0
         return moves, current, refused
 
     def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
@@ -489,34 +539,96 @@ class SurfaceProblem:
         return out
 
 
+_FREEZE_PASSES = 8
+_FREEZE_KEEP = 0.1  # a step frozen below this share of its length is given up
+_RETRIES = 3
+_FIT_MARGIN = 20.0  # adaptive fits keep faces this much clear of the ops' limits (no slivers)
+_CONVEX_SIN = math.sin(math.radians(3.0))
+_STIFF_RELAX, _STIFF_END = 0.5, 1e-3  # adaptive fits: stiffness annealed, coarse to fine
+_SMOOTH_TRIES = 4
+_SMOOTH_START = 1e-2  # first weight of the step's smoothness (relative to the system's mean diagonal)
+
+
+def _smoothing(mesh: PolyMesh) -> sp.csc_matrix:
+    """``(3 n, 3 n)`` sparse normal matrix of the umbrella Laplacian of a step of ``mesh``'s vertices (each vertex's
+    step minus the mean of its cage neighbours'), in the unknowns ``V.ravel()``."""
+    topo = mesh.topology
+    n = mesh.n_vertices
+    a, b = topo.he_origin, topo.he_dest
+    adj = sp.csr_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+    adj.data[:] = 1.0
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    lap = sp.identity(n, format="csr") - sp.diags(1.0 / np.maximum(deg, 1.0)) @ adj
+    return sp.kron(lap.T @ lap, sp.identity(3), format="csc")
+
+
 POINT_WEIGHT = 1e-4
 """Weight of the point-to-point residuals next to the point-to-plane ones in the polish."""
 
 
 def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
-    """True when every face passes the mesh ops' own checks (:mod:`gsr_cad.ops.mesh_kernel`): no (nearly)
-    zero-length edge or zero area, star-shaped about its centroid, not flipped against
-    ``reference_normals`` and not folded onto a neighbour; so vertex moves to it replay as ops."""
+    """True when every face passes the mesh ops' own checks (:func:`_unsound_faces`), so vertex moves to
+    ``mesh`` replay as ops."""
+    return not np.any(_unsound_faces(mesh, reference_normals))
+
+
+def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
+                margin: float = 1.0, lenient: np.ndarray | None = None) -> np.ndarray | None:
+    """``V`` moved by ``step`` (or half or a quarter of it), the vertices of faces it would make unsound
+    (:func:`_unsound_faces` with ``margin``, without it for the faces ``lenient``: those that were already
+    inside the margin where the fit started) held where they are, in up to ``_FREEZE_PASSES`` passes, provided at least
+    ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound."""
+    if not np.all(np.isfinite(step)):
+        return None
+    total = float(np.abs(step).sum())
+    corners = mesh.corners
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    for fraction in (1.0, 0.5, 0.25):
+        s = fraction * step
+        for _ in range(_FREEZE_PASSES):
+            moved = mesh.with_vertices(V + s)
+            bad = _unsound_faces(moved, normals0, margin)
+            if lenient is not None and lenient.any():
+                bad[lenient] = _unsound_faces(moved, normals0)[lenient]
+            if not bad.any():
+                return V + s
+            s = s.copy()
+            s[corners[bad[face_of]]] = 0.0
+            if float(np.abs(s).sum()) < _FREEZE_KEEP * fraction * total:
+                break
+    return None
+
+
+def _unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float = 1.0) -> np.ndarray:
+    """Per face, True when it fails the mesh ops' own checks (:mod:`gsr_cad.ops.mesh_kernel`): a (nearly)
+    zero-length edge or zero area, not star-shaped about its centroid, flipped against
+    ``reference_normals`` or folded onto a neighbour; with ``margin`` > 1, that many times stricter on edge
+    lengths, areas and star shapes and convex at every corner (by ``_CONVEX_SIN``), so that the vertex
+    moves to the mesh replay one by one through the states between and the structural ops apply to it."""
     diag = mesh.diagonal
     newell = mesh.face_newell
     twice_area = np.linalg.norm(newell, axis=1)
-    if np.any(twice_area < 2.0 * MK.MIN_AREA_REL * diag * diag):
-        return False
-    normal = newell / twice_area[:, None]
-    if np.any(np.einsum("ij,ij->i", normal, reference_normals) <= 0.0):
-        return False
+    bad = twice_area < 2.0 * margin * MK.MIN_AREA_REL * diag * diag
+    normal = newell / np.maximum(twice_area, 1e-300)[:, None]
+    bad |= np.einsum("ij,ij->i", normal, reference_normals) <= 0.0
     topo = mesh.topology
     v = mesh.vertices
     p, q = v[topo.he_origin], v[topo.he_dest]
-    if np.any(np.einsum("ij,ij->i", q - p, q - p) < (MK.MIN_EDGE_REL * diag) ** 2):
-        return False
     c = mesh.face_centroids[topo.he_face]
     fan = np.einsum("ij,ij->i", np.cross(p - c, q - c), normal[topo.he_face])
-    if np.any(fan < MK.FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]):
-        return False
+    he_bad = ((np.einsum("ij,ij->i", q - p, q - p) < (margin * MK.MIN_EDGE_REL * diag) ** 2)
+              | (fan < margin * MK.FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]))
+    if margin > 1.0:  # and every corner clearly convex: the ops (an edge loop's halves, an inset) then apply
+        r = v[topo.he_dest[topo.he_next]] - q
+        turn = np.einsum("ij,ij->i", np.cross(q - p, r), normal[topo.he_face])
+        he_bad |= turn < _CONVEX_SIN * np.linalg.norm(q - p, axis=1) * np.linalg.norm(r, axis=1)
+    bad[topo.he_face[he_bad]] = True
     inner = topo.edge_faces[:, 1] >= 0
     f, g = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
-    return not np.any(np.einsum("ij,ij->i", normal[f], normal[g]) < -math.cos(math.radians(MK.FOLD_DEG)))
+    fold = np.einsum("ij,ij->i", normal[f], normal[g]) < -math.cos(math.radians(MK.FOLD_DEG))
+    bad[f[fold]] = True
+    bad[g[fold]] = True
+    return bad
 
 
 def _unit_rows(a: np.ndarray) -> np.ndarray:
@@ -725,8 +837,16 @@ class SurfaceResult(Result):
 
 
 def _letters(genome: tuple) -> str:
-    """The op letters of ``genome`` ("?" for an op without one)."""
-    return "".join(getattr(op, "letter", "?") for op in genome)
+    """The op letters of ``genome`` ("?" for an op without one); past ``_MAX_LETTERS`` (a refined history
+    of hundreds of moves) run-length encoded instead ("L9 V296")."""
+    letters = "".join(getattr(op, "letter", "?") for op in genome)
+    if len(letters) <= _MAX_LETTERS:
+        return letters
+    runs = [(k, len(list(g))) for k, g in itertools.groupby(letters)]
+    return " ".join(k if n == 1 else f"{k}{n}" for k, n in runs)
+
+
+_MAX_LETTERS = 900  # result.json strings are at most 1000 characters
 
 
 def _pick_snapshots(changes: list[tuple[int, float, tuple]], count: int) -> list[tuple[int, float, tuple]]:
@@ -764,7 +884,11 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     tmpl = placement.mesh
     problem = SurfaceProblem(search, config, tmpl)
     tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
-    engine = start_or_resume(problem, _ga_config(config), seed, evaluator, checkpoint, tag)
+    refining = config.refine and config.fitness == "surface"
+    ga_config = _ga_config(config)
+    if refining and config.max_seconds:  # the refinement gets its share of the time
+        ga_config = dataclasses.replace(ga_config, max_seconds=config.max_seconds * (1.0 - config.refine_share))
+    engine = start_or_resume(problem, ga_config, seed, evaluator, checkpoint, tag)
     changes: list[tuple[int, float, tuple]] = []
 
     def on_generation(report: GenerationReport) -> None:
@@ -776,7 +900,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     run: RunResult = engine.run(on_generation=on_generation, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
     pareto = front(problem.evaluated)
-    if config.max_distance is not None:
+    if config.max_distance is not None and not refining:  # (the refinement picks on its own measure)
         meets = [entry for entry in pareto if entry[1] <= config.max_distance]
         if meets and meets[0][2] != best:
             best = meets[0][2]  # the simplest cage that meets the tolerance
@@ -794,11 +918,21 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     if config.simplify_history and final and not hurry():
         final = problem.simplified(final, should_stop)
     simplify_seconds = time.perf_counter() - polished_at
+    refined_at = time.perf_counter()
+    growth = None
+    if refining and final and not hurry():
+        goal = config.max_distance if config.max_distance is not None else config.refine_until
+        deadline = (started + config.max_seconds if config.max_seconds
+                    else time.perf_counter() + config.refine_seconds if config.refine_seconds else None)
+        growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
+        if growth is not None:
+            final, pareto = growth.genome, growth.front
+    refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
     before = surface_metrics(problem.control_mesh(best), search, config) if final != best else metrics
     metrics.update({
-        "fitness": problem.evaluate(final, 0).cost,
+        "fitness": problem.evaluate(final, 0).cost if growth is None else growth.cost,
         "fitness_kind": ("mixed mean distance / diagonal" if config.fitness == "mixed"
                          else "symmetric point-to-surface distance / diagonal"),
         "search_fitness": float(run.best_cost),
@@ -807,6 +941,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "unpolished_mean_distance": before["mean_distance"],
         "polish_seconds": polish_seconds,
         "simplify_seconds": simplify_seconds,
+        "refine_seconds": refine_seconds,
+        "refinement": [] if growth is None else growth.levels,
         "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
@@ -837,6 +973,74 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     return SurfaceResult(kind="surface", config=cfg, seed=run.seed, genome=final, metrics=metrics,
                          history=run.history, control_mesh=control, interrupted=run.interrupted,
                          target=tgt, template=tmpl, snapshots=snapshots)
+
+
+REFINE_POINTS = 8000
+"""Target points the refinement fits (at least; its cages reach hundreds of control vertices)."""
+
+
+REFINE_EXACT_TRIANGLES = 1000
+"""A mesh target with at least this many triangles is fitted by the refinement to its triangles both ways
+(a fine mesh's chords are its surface); a coarser one, like the search, to its area samples, each standing
+for the surface within its sampling radius (a coarse tessellation's chords are not its surface)."""
+
+
+class Growth(NamedTuple):
+    """What the refinement made of the searched winner: the genome, its distance (the refinement's measure,
+    :meth:`SurfaceProblem._pairs`, see ``REFINE_EXACT_TRIANGLES``), the front re-measured alike with every
+    level on it, and one record per level for result.json."""
+
+    genome: tuple
+    cost: float
+    front: list[tuple[int, float, tuple]]
+    levels: list[dict[str, Any]]
+
+
+def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: float | None,
+             searched: list[tuple[int, float, tuple]], should_stop: Callable[[], bool] | None,
+             pick: bool) -> Growth | None:
+    """The searched winner ``genome`` grown by :func:`~gsr_cad.reconstruct.refine.refine` until ``goal``
+    (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
+    measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
+    tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
+    the winner is within ``goal`` already and no tolerance was asked."""
+    config = problem.config
+    points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
+    target = problem.target
+    exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
+    grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
+                            exact_back=exact)
+    grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
+    start = grower.fit(grower.control_mesh(genome), 0)[1]
+    if start <= goal and not pick:  # nothing to grow: the search's front and measure stand
+        return None
+    found: dict[int, tuple[float, tuple]] = {}
+
+    def record(mesh: PolyMesh, cost: float, history: tuple) -> None:
+        n = mesh.n_vertices
+        if n not in found or cost < found[n][0]:
+            found[n] = (cost, history)
+
+    winner = grower.control_mesh(genome).n_vertices
+    for n, _, g in searched:
+        if n >= winner or (should_stop is not None and should_stop()):
+            break
+        with contextlib.suppress(GsrError):
+            mesh = grower.control_mesh(g)
+            v, cost = grower.fit(mesh, config.polish_rounds)
+            moves, _, refused = grower._moves(mesh, v)
+            if refused:
+                record(mesh, grower.fit(mesh, 0)[1], g)
+            else:
+                record(mesh, cost, g + moves)
+    meets = [entry for entry in front(found) if entry[1] <= goal]
+    if pick and meets:
+        return Growth(meets[0][2], meets[0][1], front(found), [])
+    final, levels = refine(grower, genome, goal, deadline, config.refine_max_faces, record, should_stop)
+    rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
+             "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
+            for lv in levels]
+    return Growth(final, levels[-1].cost, front(found), rows)
 
 
 def template_from_config(config: dict[str, Any]) -> PolyMesh:

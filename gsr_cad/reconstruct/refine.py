@@ -1,0 +1,359 @@
+"""Coarse-to-fine refinement (beyond the paper): structure grown where the residual is.
+
+After the search, the winner's cage is refined level by level. Each level measures the two-sided
+residual of the current cage (the target's points -> their foot points on the exact limit surface, the
+surface's area samples -> the target) and attributes it to the control vertices by the weights with which
+each point depends on them (its sparse row of the limit map), then to the faces around them. The
+proposals aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
+extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the
+face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
+bends; and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
+connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
+proposal is fitted by a few rounds of the adaptive least-squares fit
+(:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
+of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most per
+added control vertex is kept and fitted further. Levels stop once the distance reaches the goal, the
+time or face budget runs out, or no proposal gains.
+
+History: the structural ops replay on the geometry the search left them (the template's, moved by the
+search's ops), where they apply cleanly, followed by the moves of the final fit (in stages when the
+straight path would fold a face); when those moves cannot replay, a level's ops follow the previous
+level's moves instead (after moves onto the limit cage, :func:`limit_cage`, where the fitted quads are
+too skewed for them). Every level is a point of the accuracy/complexity front.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import GsrError, OpError
+from ..geometry.limit_surface import LimitSurface, get_layout
+from ..geometry.polymesh import PolyMesh
+from ..geometry.subdivision import get_catmull_clark
+from ..ops.mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, TranslateVertex
+from ..ops.mesh_conn import mesh_view
+from ..ops.mesh_kernel import edge_ring
+
+TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
+LEVEL_ROUNDS = 12  # rounds the kept candidate gets
+LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
+MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
+STIFFNESS = 0.1  # first stiffness of the adaptive fits (see SurfaceProblem.fit)
+
+
+@dataclasses.dataclass(frozen=True)
+class Level:
+    """One refinement level: the ops added (none for the starting cage), the fitted cage, its distance and
+    the seconds since the refinement started."""
+
+    ops: tuple[MeshOp, ...]
+    control: PolyMesh
+    cost: float
+    seconds: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Residual:
+    """Residual of a cage attributed to its faces: ``total`` (both directions) and ``outward`` (target
+    points outside the surface, along its normal) per face."""
+
+    total: np.ndarray
+    outward: np.ndarray
+
+
+def residual(problem, mesh: PolyMesh) -> Residual:
+    """The two-sided residual of ``mesh``'s limit surface on ``problem``'s target, per control face."""
+    layout = get_layout(mesh, problem.config.boundary, problem.config.limit_depth)
+    surface = LimitSurface(layout, mesh.vertices)
+    pairs, _ = problem._pairs(surface)
+    foot = pairs.foot
+    d_fwd = problem.point_weight * foot.distance
+    signed = np.einsum("ij,ij->i", problem.points - foot.point, foot.normal)
+    out_fwd = problem.point_weight * np.maximum(signed, 0.0)
+    d_back = pairs.weight * np.linalg.norm(pairs.goal - pairs.samples.point, axis=1)
+    R1 = abs(surface.rows(foot))
+    R2 = abs(surface.rows(pairs.samples))
+    per_vertex = R1.T @ d_fwd + R2.T @ d_back
+    out_vertex = R1.T @ out_fwd
+    sizes = mesh.face_sizes
+    inc = sp.csr_matrix((np.ones(len(mesh.corners)), (np.repeat(np.arange(mesh.n_faces), sizes), mesh.corners)),
+                        shape=(mesh.n_faces, mesh.n_vertices))
+    return Residual(np.asarray(inc @ per_vertex).ravel() / sizes, np.asarray(inc @ out_vertex).ravel() / sizes)
+
+
+def edge_rings(mesh: PolyMesh) -> list[tuple[int, list[int]]]:
+    """Every distinct ring an edge loop can cut: ``(an edge of it, the faces it crosses)``."""
+    conn = mesh_view(mesh).conn
+    seen: set[int] = set()
+    out = []
+    for e in range(len(conn.edges)):
+        if e in seen:
+            continue
+        try:
+            ring, quads, _, _ = edge_ring(conn, e)
+        except OpError:
+            seen.add(e)
+            continue
+        seen.update(ring)
+        ends = [v for r in ring for v in conn.edges[r]]
+        if quads and len(set(ends)) == len(ends):
+            out.append((e, [f for f, _ in quads]))
+    return out
+
+
+def _inradius(mesh: PolyMesh, face: int) -> float:
+    cyc = mesh.faces[face]
+    p = mesh.vertices[list(cyc)]
+    c = p.mean(axis=0)
+    return float(np.linalg.norm(p - c, axis=1).min())
+
+
+def candidates(mesh: PolyMesh, res: Residual, n_loops: int = 3) -> list[MeshOp]:
+    """Structural ops aimed at the residual (module docstring): the ``n_loops`` edge rings with most total
+    residual and the densest one, an extrude of the face with most outward residual, an inset of the face
+    with most residual, a bevel of the edge between the two faces with most residual where they bend."""
+    ops: list[MeshOp] = []
+    rings = edge_rings(mesh)
+    if rings:
+        total = np.array([res.total[faces].sum() for _, faces in rings])
+        dense = total / np.array([len(faces) for _, faces in rings])
+        pick = list(np.argsort(-total)[:n_loops]) + [int(np.argmax(dense))]
+        ops += [EdgeLoop(rings[i][0]) for i in dict.fromkeys(int(i) for i in pick)]
+    if np.any(res.outward > 0):
+        f = int(np.argmax(res.outward))
+        size = _inradius(mesh, f)
+        if size > 0:
+            ops.append(Extrude(f, 0.25 * size))
+    f = int(np.argmax(res.total))
+    size = _inradius(mesh, f)
+    if size > 0:
+        ops.append(Inset(f, 0.3 * size))
+    conn = mesh_view(mesh).conn
+    edges = np.array(conn.edges, dtype=np.int64).reshape(-1, 2)
+    sides = np.array([conn.edge_faces(e) for e in range(len(edges))], dtype=np.int64).reshape(-1, 2)
+    inner = np.flatnonzero(sides[:, 1] >= 0)
+    if inner.size:
+        a, b = sides[inner, 0], sides[inner, 1]
+        n = mesh.face_newell
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        score = (1.0 - np.einsum("ij,ij->i", n[a], n[b])) * (res.total[a] + res.total[b])
+        k = int(np.argmax(score))
+        if score[k] > 0:
+            u, v = edges[inner[k]]
+            ops.append(Bevel(int(inner[k]), 0.15 * float(np.linalg.norm(mesh.vertices[u] - mesh.vertices[v]))))
+    return ops
+
+
+def split_all(state: PolyMesh, fitted: PolyMesh) -> tuple[tuple[MeshOp, ...], PolyMesh, PolyMesh] | None:
+    """An edge loop through every ring of ``state`` (a closed all-quad mesh whose rings are all closed):
+    the connectivity of one Catmull-Clark step. Returns ``(the loops, the mesh they build from state,
+    that mesh with the vertices of the Catmull-Clark step of fitted)`` (the same limit surface as
+    ``fitted``, which has ``state``'s connectivity), or None when the loops build something else."""
+    n = state.n_vertices
+    if np.any(state.face_sizes != 4) or np.any(state.topology.edge_faces[:, 1] < 0):
+        return None
+    weights = [{i: 1.0} for i in range(n)]
+    ops: list[MeshOp] = []
+    mesh = state
+    while True:
+        conn = mesh_view(mesh).conn
+        todo = [e for e, (u, v) in enumerate(conn.edges) if u < n and v < n]
+        if not todo:
+            break
+        try:
+            ring, _, _, closed = edge_ring(conn, todo[0])
+            if not closed:
+                return None
+            grown = EdgeLoop(todo[0]).apply(mesh)
+        except OpError:
+            return None
+        for e in ring:
+            u, v = conn.edges[e]
+            w: dict[int, float] = {}
+            for k, x in (*weights[u].items(), *weights[v].items()):
+                w[k] = w.get(k, 0.0) + 0.5 * x
+            weights.append(w)
+        ops.append(EdgeLoop(todo[0]))
+        mesh = grown
+    topo = state.topology
+    edge_index = {(int(a), int(b)): i for i, (a, b) in enumerate(topo.edges)}
+    edge_index.update({(b, a): i for (a, b), i in list(edge_index.items())})
+    face_index = {frozenset(f): i for i, f in enumerate(state.faces)}
+    n_e = topo.n_edges
+    where = np.empty(mesh.n_vertices, dtype=np.int64)
+    for i, w in enumerate(weights):
+        key = sorted(w)
+        if len(key) == 1:
+            where[i] = key[0]
+        elif len(key) == 2 and tuple(key) in edge_index:
+            where[i] = n + edge_index[tuple(key)]
+        elif len(key) == 4 and frozenset(key) in face_index:
+            where[i] = n + n_e + face_index[frozenset(key)]
+        else:
+            return None
+    cc = get_catmull_clark(fitted, 1, "all")
+    refined = cc.refine(fitted.vertices)
+    mapped = {tuple(sorted(int(where[v]) for v in f)) for f in mesh.faces}
+    if mapped != {tuple(sorted(f)) for f in refined.faces}:
+        return None
+    return tuple(ops), mesh, mesh.with_vertices(refined.vertices[where])
+
+
+def _stop_when(deadline: float | None, should_stop: Callable[[], bool] | None) -> Callable[[], bool]:
+    def out_of_time() -> bool:
+        return ((deadline is not None and time.perf_counter() >= deadline)
+                or (should_stop is not None and bool(should_stop())))
+    return out_of_time
+
+
+class _Fitter:
+    """The refinement's fits (adaptive, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`), timed: a fit
+    predicted to end after the deadline (from the seconds per round and control vertex so far) is skipped."""
+
+    def __init__(self, problem, deadline: float | None):
+        self.problem = problem
+        self.deadline = deadline
+        self.rate = 0.0
+
+    def fits_in_time(self, mesh: PolyMesh, rounds: int) -> bool:
+        return self.deadline is None or time.perf_counter() + self.rate * rounds * mesh.n_vertices <= self.deadline
+
+    def __call__(self, mesh: PolyMesh, rounds: int) -> tuple[np.ndarray, float]:
+        start = time.perf_counter()
+        out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=STIFFNESS)
+        self.rate = (time.perf_counter() - start) / max(rounds * mesh.n_vertices, 1)
+        return out
+
+
+def refine(problem, genome: tuple, goal: float, deadline: float | None, max_faces: int,
+           record: Callable[[PolyMesh, float, tuple], None] | None = None,
+           should_stop: Callable[[], bool] | None = None) -> tuple[tuple, list[Level]]:
+    """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
+    docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
+    largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
+    to it. Returns the refined genome and the levels.
+
+    The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
+    template's own geometry, where they apply cleanly) followed by one move per control vertex to the
+    fitted cage; when those moves cannot all replay, each level's ops follow the previous level's moves.
+    """
+    started = time.perf_counter()
+    out_of_time = _stop_when(deadline, should_stop)
+    _fit = _Fitter(problem, deadline)
+    genome = tuple(genome)
+    fitted = problem.control_mesh(genome)
+    base = tuple(op for op in genome if not isinstance(op, TranslateVertex))
+    kept, base_state = problem.walk(base)
+    if len(kept) != len(base) or base_state.topology_key != fitted.topology_key:
+        base, base_state = genome, fitted
+    v, cost = _fit(fitted, LEVEL_ROUNDS)
+    mesh = fitted.with_vertices(v)
+    full = _reach(problem, base, base_state, v) or _reach(problem, genome, fitted, v) or genome
+    if full == genome:
+        mesh, cost = fitted, problem.fit(fitted, 0)[1]
+    levels = [Level((), mesh, cost, time.perf_counter() - started)]
+    if record is not None:
+        record(mesh, cost, full)
+    while cost > goal and mesh.n_faces < max_faces and not out_of_time():
+        res = residual(problem, mesh)
+        proposals = []  # (ops, what they build from base_state or None, the cage to fit)
+        split = split_all(base_state, mesh)
+        if split is None:
+            split = split_all(limit_cage(mesh), mesh)
+            split = None if split is None else (split[0], None, split[2])
+        if split is not None:
+            proposals.append(split)
+        for op in candidates(mesh, res):
+            try:
+                b = op.apply(mesh)
+            except OpError:
+                continue
+            try:
+                a = op.apply(base_state)
+            except OpError:
+                a = None
+            proposals.append(((op,), a if a is not None and a.topology_key == b.topology_key else None, b))
+        scored = []
+        for ops, a, b in proposals:
+            # a split keeps the limit surface: it needs its whole fit to show what it gains
+            rounds = LEVEL_ROUNDS if len(ops) > 1 else TRIAL_ROUNDS
+            if out_of_time() or b.n_faces > max_faces or not _fit.fits_in_time(b, rounds):
+                continue
+            try:
+                v, c = _fit(b, rounds)
+            except GsrError:
+                continue
+            gain = (cost - c) / max(b.n_vertices - mesh.n_vertices, 1)
+            if math.isfinite(c) and c < cost:
+                scored.append((gain, len(scored), ops, a, b, v, c))
+        chosen = None
+        # the best gain per added vertex first; the next if its full fit gains too little
+        for _, _, ops, a, b, v, c in sorted(scored, key=lambda t: (-t[0], t[1]))[:LEVEL_TRIES]:
+            if out_of_time():
+                break
+            if len(ops) == 1:
+                v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
+            if c < MIN_GAIN * cost:
+                chosen = (ops, a, b, v, c)
+                break
+        if chosen is None:
+            break
+        ops, a, b, v, c = chosen
+        step = None if a is None else _reach(problem, base + ops, a, v)
+        if step is not None:
+            base, base_state = base + ops, a
+        else:
+            prefix, state = _after(problem, full, ops)
+            if state is None:
+                break
+            step = _reach(problem, prefix + ops, state, v)
+            if step is None:
+                break
+            base, base_state = prefix + ops, state
+        full, mesh, cost = step, b.with_vertices(v), c
+        levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
+        if record is not None:
+            record(mesh, cost, full)
+    return full, levels
+
+
+def limit_cage(mesh: PolyMesh) -> PolyMesh:
+    """``mesh`` with each control vertex moved to its own point on the limit surface: a smoother cage,
+    near the fitted one, on which the structural ops apply where the fitted cage's quads are too skewed."""
+    cc = get_catmull_clark(mesh, 1, "all")
+    return mesh.with_vertices(cc.limit_matrix[:mesh.n_vertices] @ mesh.vertices)
+
+
+def _apply(ops: tuple, state: PolyMesh) -> PolyMesh | None:
+    try:
+        for op in ops:
+            state = op.apply(state)
+    except OpError:
+        return None
+    return state
+
+
+def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
+    """Where ``ops`` can follow ``genome``: ``(genome, or genome plus the moves to its limit cage, the state
+    the ops then build)``; None for the state when they apply at neither."""
+    state = problem.control_mesh(genome)
+    built = _apply(ops, state)
+    if built is not None:
+        return genome, built
+    prefix = _reach(problem, genome, state, limit_cage(state).vertices)
+    if prefix is None:
+        return genome, None
+    return prefix, _apply(ops, problem.control_mesh(prefix))
+
+
+def _reach(problem, base: tuple, state: PolyMesh, vertices: np.ndarray) -> tuple | None:
+    """``base`` (which builds ``state``) followed by the moves to ``vertices``, or None when some move
+    cannot replay."""
+    moves, _, refused = problem._moves(state, vertices)
+    return None if refused else base + moves

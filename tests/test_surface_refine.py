@@ -1,0 +1,115 @@
+"""The refinement stage: structure grown where the residual is, coarse to fine, with a replayable history."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from gsr_cad.geometry.isomorphism import connectivity_hash
+from gsr_cad.geometry.limit_surface import LimitSurface
+from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
+from gsr_cad.ops.mesh import EdgeLoop
+from gsr_cad.reconstruct.config import SurfaceConfig
+from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.refine import candidates, limit_cage, refine, residual, split_all
+from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
+from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
+
+
+def _cube() -> PolyMesh:
+    v = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return PolyMesh.from_faces(v, faces)
+
+
+def _blob(seed: int) -> PolyMesh:
+    """A cube refined once (26 control vertices), its vertices moved at random: a shape no 8-vertex cage
+    fits, whose cage one split of the cube reaches."""
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    rng = np.random.default_rng(seed)
+    return fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
+
+
+def test_a_split_keeps_the_limit_surface_and_is_one_catmull_clark_step():
+    cube = _cube()
+    rng = np.random.default_rng(3)
+    fitted = cube.with_vertices(cube.vertices * (1 + 0.2 * rng.random((8, 1))))
+    ops, built, placed = split_all(cube, fitted)
+    assert all(isinstance(op, EdgeLoop) for op in ops) and len(ops) == 3
+    step = get_catmull_clark(fitted, 1, "all").refine(fitted.vertices)
+    assert connectivity_hash(built) == connectivity_hash(step) and built.n_vertices == 26
+    before, after = LimitSurface.of(fitted), LimitSurface.of(placed)
+    points = before.random_points(2000, seed=1)
+    assert after.closest(points).distance.max() < 1e-5 * fitted.diagonal
+
+
+def test_the_residual_points_at_the_face_the_target_leaves():
+    cube = _cube()
+    bumped = cube.with_vertices(cube.vertices + np.where(cube.vertices[:, [2]] > 0, [0.0, 0.0, 0.8], 0.0))
+    target = surface_target(limit_mesh(bumped, 3), "bump")
+    problem = SurfaceProblem(target, SurfaceConfig(), cube)
+    res = residual(problem, cube)
+    top = int(np.argmax(res.outward))
+    assert np.all(cube.vertices[list(cube.faces[top]), 2] > 0)  # the face the bump grows from
+    letters = {op.letter for op in candidates(cube, res)}
+    assert {"L", "E", "I"} <= letters
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_refinement_grows_the_cage_until_it_fits_and_replays(seed):
+    truth = _blob(seed)
+    target = surface_target(limit_mesh(truth, 3), f"blob{seed}")
+    config = SurfaceConfig(max_target_points=3000)
+    problem = SurfaceProblem(target, config, box_template(target))
+    problem.max_faces = 400
+    seen = []
+    genome, levels = refine(problem, (), 2e-4, time.perf_counter() + 120, 400,
+                            record=lambda mesh, cost, history: seen.append((mesh.n_vertices, cost, history)))
+    costs = [lv.cost for lv in levels]
+    assert len(levels) >= 2 and all(b < a for a, b in zip(costs, costs[1:]))
+    assert levels[0].control.n_vertices == 8 and levels[-1].control.n_vertices > 8
+    assert costs[-1] < 0.995 * costs[0] and costs[-1] < 2e-3
+    # every level's genome replays to its cage, and the last is the returned one
+    for (n, _, history), level in zip(seen, levels):
+        replayed = problem.control_mesh(history)
+        assert replayed.n_vertices == n
+        assert np.abs(replayed.vertices - level.control.vertices).max() <= 1e-9 * target.diagonal
+    assert seen[-1][2] == genome
+
+
+def test_the_limit_cage_lies_on_the_limit_surface():
+    cube = _cube()
+    smooth = limit_cage(cube)
+    assert LimitSurface.of(cube).closest(smooth.vertices).distance.max() < 1e-4 * cube.diagonal
+
+
+def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_distance_stops_it():
+    target = surface_target(limit_mesh(_blob(2), 3), "blob")
+    small = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+                 generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
+    result = reconstruct_surface(target, seed=1, max_seconds=120, refine_until=5e-4, **small)
+    m = result.metrics
+    assert m["refinement"] and m["refinement"][-1]["distance"] < m["refinement"][0]["distance"]
+    points = m["front"]
+    for p in points:
+        assert not any(q is not p and q["vertices"] <= p["vertices"] and q["distance"] < p["distance"]
+                       for q in points)
+    levels = {r["vertices"] for r in m["refinement"]}
+    assert levels & {p["vertices"] for p in points} == levels or len(points) >= 2
+    assert m["n_control_vertices"] == m["refinement"][-1]["vertices"]
+    goal = m["refinement"][1]["distance"] * 1.001
+    picked = reconstruct_surface(target, seed=1, max_seconds=120, max_distance=goal, **small)
+    assert picked.metrics["tolerance_met"] is True
+    assert picked.metrics["n_control_vertices"] <= m["refinement"][1]["vertices"]
+
+
+def test_the_paper_preset_does_not_refine():
+    assert SurfaceConfig.preset("paper").refine is False
+    target = surface_target(SURFACE_SAMPLES["extended"]().target, "ext")
+    result = reconstruct_surface(target, seed=1, preset="paper", generations=1, population=4, initial_population=4,
+                                 n_parents=2, n_perturb=1, n_newcomers=1, max_children=1)
+    assert result.metrics["refinement"] == []
