@@ -32,8 +32,12 @@ def _square() -> np.ndarray:
 
 
 def _vee3d() -> np.ndarray:
-    a = np.linspace([0.0, 1.0, 0.0], [0.5, 0.0, 0.2], 60, endpoint=False)
-    return np.vstack([a, np.linspace([0.5, 0.0, 0.2], [1.0, 1.0, 0.0], 60)])
+    """Two space arcs meeting at a corner (two straight legs would be fitted exactly by three coincident control
+    points, with no corner op)."""
+    t = np.linspace(0.0, np.pi / 2.0, 80, endpoint=False)
+    a = np.c_[np.cos(t) - 1.0, np.sin(t), 0.3 * t]
+    s = np.linspace(0.0, np.pi / 2.0, 80)
+    return np.vstack([a, np.c_[0.8 * np.sin(s) - 1.0, 1.0 + 0.5 * s, 0.3 * np.pi / 2.0 - 0.2 * s]])
 
 
 def _helix() -> np.ndarray:
@@ -321,7 +325,8 @@ def test_openscad_checks_that_a_closed_stroke_is_joined_at_its_seam(results, tmp
         pytest.skip("OpenSCAD is not installed")
     result = results["square"]
     spline = curve_spline(result)
-    assert spline.closed and np.allclose(spline.points(np.array([0.0]))[0], [0.0, 0.0], atol=1e-9)
+    seam = spline.points(np.array([0.0]))[0]
+    assert spline.closed and min(np.abs(seam - c).max() for c in ([0, 0], [1, 0], [1, 1], [0, 1])) < 1e-9
     exporter = OpenscadExporter()
     ((name, text),) = exporter.render_curve(result, "curve").items()
     path = tmp_path / name
