@@ -123,3 +123,25 @@ def test_area_samples_of_a_mesh_weight_by_area_not_by_vertex():
     inside = area_samples(strip, np.array([[0, 1, 2], [2, 3, 4], [2, 0, 3], [3, 0, 4]]), 2000, seed=0)
     assert np.mean((inside[:, 0] > 0.2) & (inside[:, 0] < 9.9)) > 0.5
     assert np.array_equal(pts, area_samples(v, np.array(tris), 20000, seed=1))
+
+
+def test_the_flat_faces_of_a_part_are_sampled_inside_and_a_smooth_tessellation_at_its_vertices():
+    """A box's 12 triangles are its faces (sampled inside, so a fit sees the middle of each face); a sphere's
+    and a cylinder wall's chords are not the surface (their vertices are), the cylinder's flat caps are."""
+    import trimesh
+
+    from gsr_cad.geometry.surface_distance import facet_triangles
+
+    box = trimesh.creation.box()
+    assert facet_triangles(box.vertices, box.faces).all()
+    pts = area_samples(box.vertices, box.faces, 3000, seed=2)
+    assert np.mean(np.abs(pts).max(axis=1) > 0.5 - 1e-12) == 1.0  # on the faces
+    assert np.mean((np.abs(pts) < 0.45).sum(axis=1) == 2) > 0.6  # mostly inside them, not at the corners
+    sphere = trimesh.creation.icosphere(2)
+    assert not facet_triangles(sphere.vertices, sphere.faces).any()
+    on = area_samples(sphere.vertices, sphere.faces, 2000, seed=2)
+    np.testing.assert_allclose(np.linalg.norm(on, axis=1), 1.0, atol=1e-12)  # vertices of the unit sphere
+    cylinder = trimesh.creation.cylinder(1.0, 2.0, sections=64)
+    facets = facet_triangles(cylinder.vertices, cylinder.faces)
+    normals = cylinder.face_normals
+    np.testing.assert_array_equal(facets, np.abs(normals[:, 2]) > 0.99)

@@ -247,16 +247,48 @@ LARGE_TRIANGLE = 3.0
 """A triangle whose longest edge exceeds this many times the median is sampled inside (see
 :func:`area_samples`); smaller ones are represented by their corners."""
 
+FLAT_DEGREES = 0.5
+"""Dihedral angle (degrees) below which two triangles are coplanar parts of one flat face."""
+
+SHARP_DEGREES = 30.0
+"""Dihedral angle (degrees) above which an edge is a feature edge (a CAD part's sharp edge)."""
+
+
+def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Which triangles lie on a planar face of a part: each of their edges is shared with a coplanar
+    neighbour (``FLAT_DEGREES``), is a feature edge (``SHARP_DEGREES``) or is a boundary. Their interiors are
+    the surface itself, unlike the chords of a smooth surface's tessellation, whose edges bend by a few
+    degrees."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    normal = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    length = np.linalg.norm(normal, axis=1)
+    normal = normal / np.where(length > 0, length, 1.0)[:, None]
+    edges = np.sort(np.stack([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
+    owner = np.repeat(np.arange(len(t)), 3)
+    _, key, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    key = key.ravel()
+    order = np.argsort(key, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(key[order]) != 0])
+    pair = count[key[order[starts]]] == 2
+    cos = np.ones(len(count))
+    a, b = owner[order[starts[pair]]], owner[order[starts[pair] + 1]]
+    cos[key[order[starts[pair]]]] = np.einsum("ij,ij->i", normal[a], normal[b])
+    flat = cos > np.cos(np.radians(FLAT_DEGREES))
+    sharp = (cos < np.cos(np.radians(SHARP_DEGREES))) | (count != 2)
+    return (flat | sharp)[key].reshape(-1, 3).all(axis=1) & (length > 0)
+
 
 def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
     """``n`` points ``(n, 3)`` drawn by area from a triangle mesh (seeded), so that a plain mean over them
     is a mean over the surface whatever the triangles' sizes.
 
     Each triangle's area goes to its three corners (a third each), except for triangles much larger than
-    the median (``LARGE_TRIANGLE``: long slivers of a CAD export), which are sampled uniformly inside: a
-    tessellation's vertices lie on the surface it samples while its chords do not, so the same surface
-    tessellated at any density gives the same distances, and a mean over the vertices alone would miss
-    the interior of a long triangle."""
+    the median (``LARGE_TRIANGLE``: long slivers of a CAD export) and facets (:func:`facet_triangles`: the
+    planar faces of a CAD part), which are sampled uniformly inside: a tessellation's vertices lie on the
+    surface it samples while its chords do not, so the same smooth surface tessellated at any density gives
+    the same distances, and a mean over the vertices alone would miss the interior of a long triangle or of
+    a flat face."""
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
@@ -266,7 +298,7 @@ def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int 
         raise InputError("cannot sample a mesh by area: its triangles have no area")
     longest = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
                         np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
-    large = longest > LARGE_TRIANGLE * float(np.median(longest))
+    large = (longest > LARGE_TRIANGLE * float(np.median(longest))) | facet_triangles(v, t)
     corner_area = np.bincount(t[~large].ravel(), np.repeat(area[~large] / 3.0, 3), minlength=len(v))
     weight = np.concatenate([corner_area, np.where(large, area, 0.0)])
     rng = np.random.default_rng(seed)
