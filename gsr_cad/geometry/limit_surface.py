@@ -22,8 +22,6 @@ points (nearest samples, then clamped Newton on a few candidate patches), area-w
 from __future__ import annotations
 
 import dataclasses
-import threading
-from collections import OrderedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -32,7 +30,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from .patches import crease_stencils, phantom_rows
 from .polymesh import PolyMesh
-from .subdivision import CatmullClark, get_catmull_clark, refined_sharpness
+from .subdivision import CatmullClark, TopologyLRU, get_catmull_clark, refined_sharpness
 from .surface_distance import TriangleSet
 
 DEPTH = 5
@@ -146,34 +144,13 @@ def _carried(topo, sharpness: np.ndarray, sub_topo, used: np.ndarray) -> np.ndar
     return sharpness[order[np.searchsorted(keys, sub_keys, sorter=order)]]
 
 
-class _LayoutCache:
-    """LRU of layouts by ``(topology key, boundary, depth)``."""
-
-    def __init__(self, size: int = 256):
-        self.size = size
-        self._items: OrderedDict[tuple, LimitLayout] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, mesh: PolyMesh, boundary: str, depth: int) -> LimitLayout:
-        key = (mesh.topology_key, boundary, depth)
-        with self._lock:
-            if key in self._items:
-                self._items.move_to_end(key)
-                return self._items[key]
-        layout = build_layout(mesh, boundary, depth)
-        with self._lock:
-            self._items[key] = layout
-            while len(self._items) > self.size:
-                self._items.popitem(last=False)
-        return layout
-
-
-_LAYOUTS = _LayoutCache()
+_LAYOUTS = TopologyLRU(256)
+"""Layouts by ``(topology key, boundary, depth)``."""
 
 
 def get_layout(mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> LimitLayout:
     """The cached :class:`LimitLayout` of ``mesh``'s connectivity."""
-    return _LAYOUTS.get(mesh, boundary, depth)
+    return _LAYOUTS.get((mesh.topology_key, boundary, depth), lambda: build_layout(mesh, boundary, depth))
 
 
 def bspline_basis(t: np.ndarray, order: int = 0) -> np.ndarray:

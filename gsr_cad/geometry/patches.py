@@ -39,8 +39,6 @@ measure tangential sliding (it shrinks only by the subdominant eigenvalue per le
 from __future__ import annotations
 
 import dataclasses
-import threading
-from collections import OrderedDict
 from typing import Literal
 
 import numpy as np
@@ -49,7 +47,7 @@ import scipy.sparse as sp
 from ..errors import ConfigError, InputError
 from . import bspline
 from .polymesh import SHARPNESS_INFINITE, PolyMesh
-from .subdivision import get_catmull_clark, refined_sharpness
+from .subdivision import TopologyLRU, get_catmull_clark, refined_sharpness
 
 Boundary = Literal["all", "corners"]
 DEGREE = 3
@@ -134,28 +132,8 @@ def _basis(knots: np.ndarray, degree: int, x: np.ndarray) -> np.ndarray:
     return BSpline.design_matrix(np.clip(x, knots[0], knots[-1]), knots, degree).toarray()
 
 
-class _GridCache:
-    """LRU of grid vertex indices by ``(topology key, level)``: they depend on connectivity only."""
-
-    def __init__(self, size: int = 32):
-        self.size = size
-        self._items: OrderedDict[tuple, np.ndarray] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: tuple, build) -> np.ndarray:
-        with self._lock:
-            if key in self._items:
-                self._items.move_to_end(key)
-                return self._items[key]
-        value = build()
-        with self._lock:
-            self._items[key] = value
-            while len(self._items) > self.size:
-                self._items.popitem(last=False)
-        return value
-
-
-_GRIDS = _GridCache()
+_GRIDS = TopologyLRU(32)
+"""Grid vertex indices by ``(topology key, level)``: they depend on connectivity only."""
 
 
 def _grid_indices(corners: np.ndarray, n_quads: int, level: int) -> np.ndarray:

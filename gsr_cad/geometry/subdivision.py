@@ -60,7 +60,7 @@ import functools
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -825,6 +825,28 @@ class _Cache:
 
 
 _CACHE = _Cache()
+
+
+class TopologyLRU:
+    """Thread-safe LRU, bounded by entry count, of values that depend on a mesh's connectivity only (keys
+    start with its ``topology_key``); ``get(key, build)`` builds a missing value outside the lock."""
+
+    def __init__(self, size: int):
+        self.size = size
+        self._items: OrderedDict[tuple, Any] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple, build: Callable[[], Any]) -> Any:
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        value = build()
+        with self._lock:
+            self._items[key] = value
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        return value
 
 
 def get_catmull_clark(mesh: PolyMesh, levels: int, boundary: Boundary = "all") -> CatmullClark:

@@ -536,6 +536,23 @@ def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int
     return ring, quads, ends, False
 
 
+def distinct_rings(conn: MeshConn) -> list[tuple[int, list[int], list[tuple[int, int]]]]:
+    """Every distinct ring an edge loop could cut, once: ``(its lowest edge, ring edges, crossed quads)`` as
+    :func:`edge_ring` gives them; self-crossing rings are left out."""
+    seen: set[int] = set()
+    out = []
+    for e in range(len(conn.edges)):
+        if e in seen:
+            continue
+        try:
+            ring, quads, _, _ = edge_ring(conn, e)
+        except OpError:
+            continue
+        seen.update(ring)
+        out.append((e, ring, quads))
+    return out
+
+
 def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     """L: cut the ring of opposite edges through ``edge`` at their midpoints and join the cuts across quads."""
     what = f"edge_loop {edge}"

@@ -38,7 +38,7 @@ from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
 from ..ops.mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, TranslateVertex
 from ..ops.mesh_conn import mesh_view
-from ..ops.mesh_kernel import edge_ring
+from ..ops.mesh_kernel import distinct_rings, edge_ring
 
 TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
@@ -88,19 +88,11 @@ def residual(problem, mesh: PolyMesh) -> Residual:
 
 
 def edge_rings(mesh: PolyMesh) -> list[tuple[int, list[int]]]:
-    """Every distinct ring an edge loop can cut: ``(an edge of it, the faces it crosses)``."""
+    """Every distinct ring an edge loop can cut through quads without meeting itself at a vertex:
+    ``(an edge of it, the faces it crosses)``."""
     conn = mesh_view(mesh).conn
-    seen: set[int] = set()
     out = []
-    for e in range(len(conn.edges)):
-        if e in seen:
-            continue
-        try:
-            ring, quads, _, _ = edge_ring(conn, e)
-        except OpError:
-            seen.add(e)
-            continue
-        seen.update(ring)
+    for e, ring, quads in distinct_rings(conn):
         ends = [v for r in ring for v in conn.edges[r]]
         if quads and len(set(ends)) == len(ends):
             out.append((e, [f for f, _ in quads]))

@@ -31,12 +31,12 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import ConfigError, GsrError, OpError
+from ..errors import ConfigError, GsrError
 from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh, unit_cube
 from ..geometry.subdivision import get_catmull_clark
 from ..ops.mesh import Crease, CreaseRim, EdgeLoop, edge_loop, hole, inset
 from ..ops.mesh_conn import mesh_view
-from ..ops.mesh_kernel import edge_ring
+from ..ops.mesh_kernel import distinct_rings
 from .features import CreaseProposals
 from .inputs import SurfaceTarget
 
@@ -228,19 +228,7 @@ GREEDY_CANDIDATES = 6
 
 def _ring_representatives(mesh: PolyMesh) -> list[int]:
     """One edge (op index) per distinct ring of opposite edges that an edge loop (L) could cut."""
-    conn = mesh_view(mesh).conn
-    seen: set[int] = set()
-    out = []
-    for e in range(len(conn.edges)):
-        if e in seen:
-            continue
-        try:
-            ring = edge_ring(conn, e)[0]
-        except OpError:
-            continue
-        seen.update(ring)
-        out.append(e)
-    return out
+    return [e for e, _, _ in distinct_rings(mesh_view(mesh).conn)]
 
 
 def _op_edges(mesh: PolyMesh, topology_edges: list[int]) -> list[int]:
