@@ -23,7 +23,7 @@ from gsr_cad.errors import OpError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import CatmullClark, get_catmull_clark
 from gsr_cad.geometry.validation import mesh_report, validate_mesh
-from gsr_cad.ops.mesh import Inset, random_op
+from gsr_cad.ops.mesh import Hole, Inset, random_op
 
 pytestmark = [pytest.mark.blender, pytest.mark.xdist_group("blender")]  # one Blender run under --dist loadgroup
 
@@ -159,6 +159,53 @@ def test_blender_creases_have_teeth(blender_creased):
         a = blender_creased[f"{name}-rims/2/1/ALL/vertices"]
         smooth = get_catmull_clark(MESHES[name], 2).limit(MESHES[name].vertices).vertices
         assert cKDTree(smooth).query(a)[0].max() > 1e-2 * MESHES[name].diagonal
+
+
+
+def dart_meshes() -> dict[str, PolyMesh]:
+    """One infinitely sharp edge (a dart at each end): on the cube (valence 3) and on a genus-1 genome, at a
+    vertex of valence 7."""
+    cube = unit_cube()
+    holed = genome_mod.replay(cube, (Inset(4, 0.2), Inset(5, 0.2), Hole(4, 5), Inset(1, 0.1), Inset(8, 0.06),
+                                     Inset(3, 0.26)))
+    valence = holed.topology.vertex_valence[holed.topology.edges]
+    edge = int(np.lexsort((valence.min(axis=1), valence.max(axis=1)))[-1])
+    assert valence[edge].max() == 7
+    return {"cube": cube.with_creases({(0, 1): 10.0}),
+            "holed": holed.with_creases({tuple(holed.topology.edges[edge].tolist()): 10.0})}
+
+
+DART_QUALITIES = (2, 4, 6, 8, 10)
+
+
+@pytest.fixture(scope="module")
+def blender_darts(tmp_path_factory) -> dict[str, np.ndarray]:
+    if find_host("blender") is None:
+        pytest.skip("Blender is not installed (Debian: apt-get install blender)")
+    work = tmp_path_factory.mktemp("blender_darts")
+    meshes = {name: {"vertices": m.vertices.tolist(), "faces": [list(f) for f in m.faces],
+                     "creases": [[a, b, 1.0] for a, b in m.creases]} for name, m in dart_meshes().items()}
+    runs = [(name, 2, True, "ALL", q) for name in meshes for q in DART_QUALITIES]
+    (work / "cases.json").write_text(json.dumps({"meshes": meshes, "runs": runs}))
+    run_blender(SCRIPT, [work / "cases.json", work / "out.npz"], timeout=300)
+    with np.load(work / "out.npz") as data:
+        return dict(data)
+
+
+@pytest.mark.parametrize("name", ["cube", "holed"])
+def test_blender_dart_limit_converges_to_ours_with_quality(blender_darts, name):
+    """Blender's limit at a dart is OpenSubdiv's smooth stencil at the modifier's quality (dart_isolation, to
+    1e-6 at every quality); as the quality rises it approaches our exact dart limit geometrically."""
+    control = dart_meshes()[name]
+    exact = CatmullClark(control, 2).limit(control.vertices)
+    gaps = []
+    for q in DART_QUALITIES:
+        theirs = blender_mesh(blender_darts, f"{name}/2/1/ALL/{q}")
+        model = CatmullClark(control, 2, dart_isolation=q).limit(control.vertices)
+        assert match_meshes(model, theirs, control.diagonal) < 1e-6, q
+        gaps.append(match_meshes(exact, theirs, control.diagonal))
+    ratios = np.array(gaps[1:]) / np.array(gaps[:-1])
+    assert gaps[0] > 1e-4 and np.all((ratios > 0.1) & (ratios < 0.5)), gaps  # two levels per entry: 0.46**2 .. 0.6**2
 
 
 # --- random creased genomes with holes ------------------------------------------------------------------------
