@@ -46,7 +46,8 @@ from .model import CurveModel, CurveSpline, HistoryStep, SurfaceModel, curve_mod
 SAMPLES_PER_SPAN = 16
 CURVE_OPS = ("add_point", "move_point", "corner")
 """The curve ops the macro's own replay knows (hostside/freecad_macro.py, ``OPS``)."""
-SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel")
+SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel", "crease",
+               "crease_rim", "hole")
 """The surface ops the macro's own replay knows (hostside/freecad_macro.py, ``PARAMETERS``)."""
 MESH_TOL = 1e-6
 """FreeCAD's Mesh module stores single precision: the limit mesh comes back within this much of the diagonal."""

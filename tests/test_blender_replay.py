@@ -226,3 +226,23 @@ def test_script_writer_rejects_bad_input(tmp_path):
     with pytest.raises(ExportError):
         write_blender_script((), np.zeros((4, 2)), tmp_path / "x.py")
     assert not (tmp_path / "x.py").exists()
+
+
+def test_edge_loop_refuses_a_ring_whose_sides_another_edge_joins():
+    """Around a tunnel an edge outside the ring can join the ring's two rim loops; Blender's subdivide_edgering
+    splits that edge too (it cuts every edge between the loops), so our edge loop is invalid there."""
+    ops = genome_mod.from_json([
+        {"op": "inset", "face": 4, "thickness": 0.2}, {"op": "inset", "face": 5, "thickness": 0.2},
+        {"op": "extrude", "face": 5, "distance": 0.5334584985926091},
+        {"op": "translate_vertex", "vertex": 13, "delta": [0.06362236748923661, 0.1514940538587277,
+                                                           0.03748292534108649]},
+        {"op": "extrude", "face": 9, "distance": 0.8168182434733419}, {"op": "hole", "face_a": 2, "face_b": 16},
+        {"op": "inset", "face": 2, "thickness": 0.12308123775350199},
+        {"op": "translate_vertex", "vertex": 10, "delta": [-0.1757422993637963, -0.08290959597987953,
+                                                           0.09275119367559026]},
+        {"op": "inset", "face": 19, "thickness": 0.06462764432039236}])
+    mesh = genome_mod.replay(unit_cube(), ops)
+    assert mesh.topology.euler_characteristic == 0
+    with pytest.raises(OpError, match="joins its two sides"):
+        EdgeLoop(19).apply(mesh)
+    EdgeLoop(8).apply(mesh)  # another ring of the same mesh is fine

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import cKDTree
 from test_subdivision import MESHES, OPEN, match_meshes
 
-from gsr_cad.errors import InputError, TopologyError
+from gsr_cad.errors import ConfigError, InputError, TopologyError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import CatmullClark, get_catmull_clark, limit_mesh
 
@@ -181,3 +181,31 @@ def test_limit_points_lie_on_the_refined_surface_far_down():
     far = CatmullClark(mesh, 7).refine(mesh.vertices).vertices
     d, _ = cKDTree(far).query(ours)
     assert d.max() < 1e-3 * mesh.diagonal
+
+
+@pytest.mark.parametrize("name,boundary", CASES)
+def test_limit_at_darts_matches_opensubdiv_with_its_isolation(name, boundary):
+    """At infinitely sharp darts lagrange takes the smooth stencil at its last level: ``dart_isolation=levels``
+    gives its limit everywhere (creases of sharpness 0, 0.5, 1 or infinite, all decayed by level 1)."""
+    rng = np.random.default_rng(5)
+    for levels in (1, 2, 3):
+        mesh = MESHES[name]
+        s = rng.choice((0.0, 0.0, 0.0, 0.5, 1.0, 10.0), size=mesh.topology.n_edges)
+        mesh = mesh.with_creases(dict(zip(map(tuple, mesh.topology.edges.tolist()), s)))
+        ours = CatmullClark(mesh, levels, boundary, dart_isolation=levels).limit(mesh.vertices)
+        assert match_meshes(ours, opensubdiv_creased(mesh, levels, True, boundary), mesh.diagonal) < 1e-8
+
+
+def test_dart_isolation_converges_to_the_exact_dart_limit():
+    dart = unit_cube().with_creases({(0, 1): 10.0})
+    exact = limit_mesh(dart, 1).vertices
+    gaps = [np.abs(CatmullClark(dart, 1, dart_isolation=q).limit(dart.vertices).vertices - exact).max()
+            for q in (1, 5, 10, 40)]
+    assert gaps[0] > 1e-2 and gaps[1] < 1e-3 and 5e-6 < gaps[2] < 2e-5 and gaps[3] < 1e-12, gaps
+    assert np.all(np.diff(gaps) < 0)
+    smooth = unit_cube()  # nothing changes without darts
+    np.testing.assert_array_equal(CatmullClark(smooth, 2, dart_isolation=3).limit_matrix.toarray(),
+                                  CatmullClark(smooth, 2).limit_matrix.toarray())
+    for bad in (-1, 1.5, True, "10"):
+        with pytest.raises(ConfigError):
+            CatmullClark(dart, 1, dart_isolation=bad)

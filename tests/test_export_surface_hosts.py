@@ -25,7 +25,7 @@ from gsr_cad.exporters.freecad import FreecadMacroExporter
 from gsr_cad.exporters.openscad import OpenscadExporter
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
-from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset, Scale, TranslateFace, TranslateVertex
+from gsr_cad.ops.mesh import Bevel, Crease, EdgeLoop, Extrude, Hole, Inset, Scale, TranslateFace, TranslateVertex
 from gsr_cad.reconstruct.result import Result
 
 OPS = (Extrude(5, 0.42), Inset(1, 0.1), EdgeLoop(0), TranslateVertex(3, (0.05, -0.02, 0.1)), Bevel(2, 0.08),
@@ -213,6 +213,54 @@ def test_gsr_validate_passes_then_reports_a_damaged_file(gsr, exported, tmp_path
     failed = [row for row in run.out.splitlines() if " FAIL " in row]
     assert run.code == 1 and failed and all(row.startswith(scad.name) for row in failed)
 
+
+
+# a tunnel through the cube, its top rim infinitely sharp (a straight crease loop through regular vertices, so
+# the patches there are exact) and one semi-sharp edge down the tunnel
+HOLED_CREASED = (Inset(4, 0.25), Inset(5, 0.25), Hole(4, 5), Crease(12, 10.0), Crease(16, 10.0), Crease(23, 10.0),
+                 Crease(24, 10.0), Crease(13, 2.5))
+
+
+@pytest.mark.blender
+@pytest.mark.openscad
+@pytest.mark.freecad
+@pytest.mark.xdist_group("blender")
+def test_gsr_validate_checks_a_creased_result_with_a_hole_in_every_host(gsr, tmp_path):
+    for host in ("blender", "openscad", "freecad"):
+        _need(host)
+    result = surface_result(HOLED_CREASED)
+    mesh = result.control_mesh
+    assert mesh.topology.euler_characteristic == 0 and len(mesh.creases) == 5
+    result.save(tmp_path)
+    names = ["blender", "scad", "fcmacro", "step"] + (["cadquery"] if hosts.cadquery_python() else [])
+    export_all(result, tmp_path, names, stem="holed")
+    run = gsr("validate", tmp_path)
+    assert run.code == 0, run.out
+    rows = run.out.splitlines()[1:-1]
+    assert {row.split()[1] for row in rows} >= {"blender", "openscad", "freecad", "OCP"}, run.out
+    assert all(" pass " in row for row in rows), run.out
+    macro = (tmp_path / "holed.FCMacro").read_text(encoding="utf-8")
+    assert "{'op': 'hole', 'face_a': 4, 'face_b': 5}" in macro and "{'op': 'crease', 'edge': 12, 'sharpness': 10.0}" in macro
+
+
+@pytest.mark.blender
+@pytest.mark.xdist_group("blender")
+def test_blender_validates_a_dart_as_opensubdiv_evaluates_it(tmp_path):
+    """One infinitely sharp edge ending at a valence-7 vertex of a genus-1 part: Blender's modifier puts that
+    dart where OpenSubdiv's stencil at quality 10 does, off our exact limit by more than the check allows
+    for float32; the check compares with that point and states the gap."""
+    _need("blender")
+    ops = (Inset(4, 0.2), Inset(5, 0.2), Hole(4, 5), Inset(1, 0.1), Inset(8, 0.06), Inset(3, 0.26))
+    mesh = genome_mod.replay(unit_cube(2.0, (10.0, -5.0, 3.0)), ops)
+    valence = mesh.topology.vertex_valence[mesh.topology.edges]
+    edge = int(np.lexsort((valence.min(axis=1), valence.max(axis=1)))[-1])
+    result = surface_result(ops + (Crease(edge, 10.0),))
+    (path,) = BlenderExporter().export(result, tmp_path, "dart")
+    checks = BlenderExporter().validate(path, result)
+    assert not failures(checks), failures(checks)
+    (modifier,) = [c for c in checks if c.check.startswith("modifier")]
+    gap = float(re.search(r"quality 10, ([0-9.e-]+) from the exact limit", modifier.detail).group(1))
+    assert gap > 1e-6 and modifier.deviation < 1e-6, (gap, modifier.deviation)
 
 @pytest.mark.blender
 @pytest.mark.xdist_group("blender")

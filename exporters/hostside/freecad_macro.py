@@ -263,12 +263,25 @@ def replay_bevel(P, recipe, edge, offset):
     P += at_a[1:] + at_b[1:]
 
 
-# the editable numbers of each op and their property types (element indices are read-only integers)
+def replay_crease(P, recipe, edge, sharpness):
+    """C: an edge's sharpness changes the limit surface, not the control points."""
+
+
+def replay_crease_rim(P, recipe, face, sharpness):
+    """R: the sharpness of a face's rim, likewise."""
+
+
+def replay_hole(P, recipe, face_a, face_b):
+    """H: two faces give way to the bridge quads between their rims; no control point moves or is added."""
+
+
+# the editable numbers of each op and their property types (other values are read-only: element indices, and
+# sharpness, which the fixed limit stencil of the final control mesh already holds)
 PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"},
               "translate_face": {"distance": "App::PropertyFloat"},
               "scale": {"factor": "App::PropertyFloat"}, "extrude": {"distance": "App::PropertyFloat"},
               "inset": {"thickness": "App::PropertyFloat"}, "edge_loop": {},
-              "bevel": {"offset": "App::PropertyFloat"}}
+              "bevel": {"offset": "App::PropertyFloat"}, "crease": {}, "crease_rim": {}, "hole": {}}
 
 
 class MeshStep:
@@ -290,7 +303,8 @@ class MeshStep:
             for name, value in op.items():
                 if name == "op":
                     continue
-                kind = PARAMETERS[op["op"]].get(name, "App::PropertyInteger")
+                kind = PARAMETERS[op["op"]].get(name) or ("App::PropertyFloat" if isinstance(value, float)
+                                                          else "App::PropertyInteger")
                 prop = name.capitalize()
                 obj.addProperty(kind, prop, "gsr_cad", "op parameter %s" % name)
                 setattr(obj, prop, App.Vector(*value) if kind == "App::PropertyVector" else value)

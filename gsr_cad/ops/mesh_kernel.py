@@ -553,6 +553,20 @@ def distinct_rings(conn: MeshConn) -> list[tuple[int, list[int], list[tuple[int,
     return out
 
 
+def _sides_joined(conn: MeshConn, ring: list[int], quads: list[tuple[int, int]]) -> bool:
+    """Whether an edge that is not in ``ring`` joins a vertex on one side of the ring to one on the other
+    (around a tunnel: Blender's subdivide_edgering splits every edge between its two rim loops)."""
+    u, v = conn.edges[ring[0]]
+    side = {u: 0, v: 1}
+    for f, i in quads:
+        c = conn.faces[f]
+        side[c[(i + 3) % 4]] = side[c[i]]
+        side[c[(i + 2) % 4]] = side[c[(i + 1) % 4]]
+    cut = set(ring)
+    return any(side.get(a, s) != s for e, (a, b) in enumerate(conn.edges)
+               if e not in cut and (s := side.get(b)) is not None)
+
+
 def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     """L: cut the ring of opposite edges through ``edge`` at their midpoints and join the cuts across quads."""
     what = f"edge_loop {edge}"
@@ -565,6 +579,8 @@ def edge_loop(mesh: PolyMesh, edge: int) -> PolyMesh:
     ends_of_ring = [v for e in ring for v in conn.edges[e]]
     if len(set(ends_of_ring)) != len(ends_of_ring):  # Blender's subdivide_edgering builds something else
         raise OpError(f"{what}: the edge ring touches itself at a vertex")
+    if _sides_joined(conn, ring, quads):  # Blender's subdivide_edgering cuts that edge too
+        raise OpError(f"{what}: an edge outside the ring joins its two sides")
     diag = _diagonal(view)
     faces = list(conn.faces)
     refs = {f: _unit(_face_newell(view, f)) for f, _ in quads}

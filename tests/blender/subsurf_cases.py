@@ -4,11 +4,11 @@ Usage: blender -b --factory-startup --python subsurf_cases.py -- CASES.json OUT.
 
 CASES.json: {"meshes": {name: {"vertices": [[x, y, z], ...], "faces": [[i, j, k, ...], ...],
 "creases": [[a, b, crease], ...] (optional: Blender's edge crease in [0, 1] on edge a-b)}},
-"runs": [[name, levels, use_limit_surface, boundary_smooth], ...]}. The name "suzanne" means
+"runs": [[name, levels, use_limit_surface, boundary_smooth(, quality)], ...]} (quality 10 unless given). The name "suzanne" means
 Blender's own monkey (bpy.ops.mesh.primitive_monkey_add); its control mesh is written too.
 OUT.npz holds for every mesh ``NAME/control/vertices|sizes|corners|creases`` (creases: ``(a, b, crease)``
 rows as Blender stored them) and for every run ``NAME/LEVELS/LIMIT/BOUNDARY/vertices|sizes|corners`` of the
-evaluated mesh (the modifier uses the creases).
+evaluated mesh (the modifier uses the creases; a run with a quality has ``/QUALITY`` appended to its prefix).
 """
 
 import json
@@ -62,21 +62,22 @@ def main():
             out[f"{name}/control/{key}"] = arr
         out[f"{name}/control/creases"] = np.array([[*e.vertices, e.crease] for e in obj.data.edges if e.crease > 0],
                                                   dtype=np.float64).reshape(-1, 3)
-    for name, levels, limit, boundary in cases["runs"]:
+    for name, levels, limit, boundary, *quality in cases["runs"]:
         obj = objects[name]
         obj.modifiers.clear()
         mod = obj.modifiers.new("subsurf", "SUBSURF")
         mod.subdivision_type = "CATMULL_CLARK"
         mod.levels = levels
         mod.use_limit_surface = limit
-        mod.quality = 10
+        mod.quality = quality[0] if quality else 10
         mod.boundary_smooth = boundary
         mod.use_creases = True
         depsgraph = bpy.context.evaluated_depsgraph_get()
         evaluated = obj.evaluated_get(depsgraph)
         mesh = evaluated.to_mesh()
         for key, arr in zip(("vertices", "sizes", "corners"), mesh_arrays(mesh), strict=True):
-            out[f"{name}/{levels}/{int(limit)}/{boundary}/{key}"] = arr
+            prefix = f"{name}/{levels}/{int(limit)}/{boundary}" + (f"/{quality[0]}" if quality else "")
+            out[f"{prefix}/{key}"] = arr
         evaluated.to_mesh_clear()
     np.savez(out_path, **out)
 
