@@ -49,6 +49,21 @@ from .inputs import CurveTarget, curve_target
 from .result import Result
 
 
+def _common_prefix(a: tuple, b: tuple) -> int:
+    """Length of the common prefix of two tuples (slice comparisons: identical items compare in C)."""
+    n = min(len(a), len(b))
+    if a[:n] == b[:n]:
+        return n
+    lo, hi = 0, n
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if a[:mid] == b[:mid]:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 class CurveWarning(UserWarning):
     """Something about the curve data the user should know (reordered points, a missed tolerance)."""
 
@@ -108,6 +123,8 @@ class CurveProblem:
         self._chord = chord_length_params(self.points)
         self._trie: dict = {}
         self._trie_size = 0
+        self._path_ops: tuple = ()
+        self._path: list = [(self.template, self._trie)]
         subsampled = len(self.points) < len(prep.points)
         # The search samples the curve more coarsely than the final check: a margin (segments a subsampled
         # search gets wrong are refitted on all their points by the final check).
@@ -132,7 +149,45 @@ class CurveProblem:
 
     def _walk(self, ops: tuple, keep: list | None = None) -> tuple[curve_ops.Polygon, dict]:
         """Walk ``ops`` through the trie (applying each new op once); ``keep`` collects the valid ones (an add
-        beyond :attr:`max_ctrl` counts as invalid there)."""
+        beyond :attr:`max_ctrl` counts as invalid there).
+
+        The last walk's path is kept: a walk resumes where it leaves the previous one, so the growing prefixes
+        of a mutation (``random_gene`` per mutated gene) cost the new ops only, not the whole genome each time.
+        """
+        start = _common_prefix(ops, self._path_ops)
+        path = self._path
+        del path[start + 1:]
+        state, children = path[start]
+        for op in ops[start:]:
+            entry = children.get(op)
+            if entry is None:
+                try:
+                    nxt = op.apply(state)
+                except OpError:
+                    nxt = state
+                entry = children[op] = (nxt, {})
+                self._trie_size += 1
+            path.append(entry)
+            state, children = entry
+        self._path_ops = ops
+        if keep is not None:
+            kept, prev, capped = [], self.template, False
+            for op, (nxt, _) in zip(ops, path[1:]):
+                if isinstance(op, curve_ops.AddPoint) and nxt is not prev and prev.n >= self.max_ctrl:
+                    capped = True
+                    break
+                if nxt is not prev:
+                    kept.append(op)
+                prev = nxt
+            if capped:  # a dropped add changes every later state: the plain walk, op by op
+                return self._capped_walk(ops, keep)
+            keep.extend(kept)
+        if self._trie_size >= 200_000:
+            self._reset_trie()
+        return state, children
+
+    def _capped_walk(self, ops: tuple, keep: list) -> tuple[curve_ops.Polygon, dict]:
+        """:meth:`_walk` with ``keep`` when some add would exceed :attr:`max_ctrl` (that add is skipped)."""
         state, children = self.template, self._trie
         for op in ops:
             entry = children.get(op)
@@ -144,14 +199,18 @@ class CurveProblem:
                 entry = children[op] = (nxt, {})
                 self._trie_size += 1
             nxt = entry[0]
-            if keep is not None:
-                if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
-                    continue
-                keep.append(op)
+            if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
+                continue
+            keep.append(op)
             state, children = entry
+        self._path_ops, self._path = (), [(self.template, self._trie)]
         if self._trie_size >= 200_000:
-            self._trie, self._trie_size = {}, 0
+            self._reset_trie()
         return state, children
+
+    def _reset_trie(self) -> None:
+        self._trie, self._trie_size = {}, 0
+        self._path_ops, self._path = (), [(self.template, self._trie)]
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
