@@ -417,8 +417,10 @@ class CurveProblem:
 
         Without a limit the placement is refined to convergence. With one, the curve is checked on all points
         (both ways) and segments that miss get more control points (5 %, doubling each round), or, once at their
-        most, are fitted to the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
-        search's placement as it is (no refinement, no check)."""
+        most, are fitted to the data's model instead of the points; a segment that still misses (or that more
+        points made worse) is cut in two where it misses most, so each part gets its own knot spacing (up to
+        twelve rounds; the best round is kept). ``hurry``: the search's placement as it is (no refinement, no
+        check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
         if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
@@ -431,58 +433,100 @@ class CurveProblem:
         if self.config.max_distance is None or hurry:
             ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
             return ctrl, idx, corners, counts
-        keys = self.model.segments(corners)
         full = self.prepared.points
         tree = cKDTree(full)
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
         limit = self.config.max_distance * self.diag
-        grown, best = list(counts), None
-        owner = np.zeros(self.m, dtype=np.int64)  # the segment of each search point
-        for i, (a, b) in enumerate(keys):
-            if (a, b) != (-1, -1):
-                owner[np.arange(a, b + 1) % self.m] = i
-        last_err, last_count, frozen = np.zeros(len(keys)), list(counts), set()
-        for rnd in range(8):
-            ctrl, idx = self.model.assemble(corners, tuple(grown))
+        keys = self.model.segments(corners)
+        grown, best = dict(zip(keys, counts)), None
+        last_err: dict = {}
+        last_count: dict = {}
+        frozen: set = set()
+        for rnd in range(12):
+            counts = tuple(grown[k] for k in keys)
+            ctrl, idx = self.model.assemble(corners, counts)
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
                                              with_samples=True)
             worst = max(float(there.max()), float(back.max()))
             if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
-                best = (worst, ctrl, idx, tuple(grown))
+                best = (worst, ctrl, idx, corners, counts)
             bad = np.flatnonzero(there > limit)
             far = back > limit
             if not bad.size and not far.any():
                 break
             where = np.concatenate([bad, tree.query(samples[far])[1]]).astype(np.int64)
             errors = np.concatenate([there[bad], back[far]])
-            seg_err = np.zeros(len(keys))
-            np.maximum.at(seg_err, owner[np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)], errors)
-            changed = False
+            site = np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)  # search index of each miss
+            seg_err, seg_site = np.zeros(len(keys)), np.zeros(len(keys), dtype=np.int64)
+            for owner in self._owners(keys):  # a miss at a joint counts for both segments that meet there
+                for j in np.argsort(errors):  # ascending: each segment ends with its worst miss
+                    o = owner[site[j]]
+                    if errors[j] >= seg_err[o]:
+                        seg_err[o], seg_site[o] = errors[j], site[j]
+            changed, splits = False, {}
             for i in np.flatnonzero(seg_err > limit):
-                key, top = keys[i], self.model.max_count(keys[i])
-                if i in frozen:
+                key = keys[i]
+                top = self.model.max_count(key)
+                if key in frozen:
+                    splits[key] = int(seg_site[i])
                     continue
-                if seg_err[i] > last_err[i] > 0.0:  # its growth made it worse (an overfit): back, and keep it
-                    grown[i] = last_count[i]
-                    frozen.add(i)
+                if seg_err[i] > last_err.get(key, 0.0) > 0.0:  # its growth made it worse (an overfit): back
+                    grown[key] = last_count[key]
+                    frozen.add(key)
+                    splits[key] = int(seg_site[i])
                     changed = True
                     continue
-                last_err[i], last_count[i] = seg_err[i], grown[i]
+                last_err[key], last_count[key] = seg_err[i], grown[key]
                 if self.model.use_all(key):  # the search's subsample misses between its points: fit them all
-                    self.model.bound(key, grown[i])
-                    grown[i] = self.model.need(key, self.limit)
+                    self.model.bound(key, grown[key])
+                    grown[key] = self.model.need(key, self.limit)
                     changed = True
-                elif grown[i] < top:
-                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * min(2 ** rnd, 4))  # faster if it persists
+                elif grown[key] < top:
+                    grown[key] = min(top, grown[key] + max(1, grown[key] // 20) * min(2 ** rnd, 4))  # faster if it persists
                     changed = True
                 elif self.model.densify(key):
-                    grown[i] = self.model.need(key, self.limit)
+                    grown[key] = self.model.need(key, self.limit)
                     changed = True
+                else:
+                    splits[key] = int(seg_site[i])
+            split = self._split(corners, splits)
+            if split != corners:  # uniform knots cannot follow this segment: cut it where it misses most
+                corners, keys, changed = split, self.model.segments(split), True
+                for key in keys:
+                    if key not in grown:
+                        grown[key] = self.model.need(key, self.limit)
             if not changed:
                 break
-        _, ctrl, idx, counts = best
+        _, ctrl, idx, corners, counts = best
         return ctrl, idx, corners, counts
+
+    def _owners(self, keys: list) -> tuple[np.ndarray, np.ndarray]:
+        """The segment (index into ``keys``) of each search point: the one starting at a joint, and the one ending
+        there (the same inside a segment)."""
+        owners = []
+        for order in (range(len(keys)), range(len(keys) - 1, -1, -1)):
+            owner = np.zeros(self.m, dtype=np.int64)
+            for i in order:
+                a, b = keys[i]
+                if (a, b) != (-1, -1):
+                    owner[np.arange(a, b + 1) % self.m] = i
+            owners.append(owner)
+        return owners[0], owners[1]
+
+    def _split(self, corners: tuple[int, ...], splits: dict) -> tuple[int, ...]:
+        """``corners`` with each segment of ``splits`` cut (a C0 joint) at its search point, kept at least one
+        point inside it: the paper's segmentation at the points a single uniform-knot piece cannot follow."""
+        out = set(corners)
+        for (a, b), at in splits.items():
+            if (a, b) == (-1, -1):
+                out.add(int(at))
+                continue
+            if b - a < 2:
+                continue
+            rel = int(np.clip(np.mod(at - a, self.m), 1, b - a - 1))
+            out.add((a + rel) % self.m)
+        return tuple(sorted(out))
 
 
 def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,
