@@ -20,7 +20,9 @@ template. Two evaluations are offered:
   points, then ``corner`` ops), so the saved genome replays exactly to the result. With X the final curve is
   checked on all points, both ways; segments that miss get more control points where the residual is (refitted
   on all their points when the search saw a subsample, or on the data's model when the points alone are too
-  coarse); a remaining miss is reported in ``metrics["tolerance_met"]``.
+  coarse), and a segment that still misses is cut in two where it misses most (a C0 joint: the paper's
+  segmentation, so each part gets its own knot spacing); a remaining miss is reported in
+  ``metrics["tolerance_met"]``.
 """
 
 from __future__ import annotations
