@@ -117,3 +117,27 @@ def test_dem_contour_meets_1e4_by_segmentation():
         result = reconstruct_curve(pts, seed=0, max_distance=1e-4)
     assert result.metrics["tolerance_met"]
     assert len(result.control_points) < len(pts)
+
+
+def test_tolerance_fits_are_bracketed_only_on_all_points(monkeypatch):
+    import gsr_cad.reconstruct.curve_model as curve_model
+
+    seen = []
+    real = curve_model.fit_curve
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("bracket"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(curve_model, "fit_curve", spy)
+    pts = wavy(1000)
+    whole = CurveProblem(curve_target(pts), CurveConfig.preset("default", max_distance=1e-3))
+    whole.model.fit((0, whole.m - 1), 12)
+    assert seen[-1] is not None and seen[-1][0] < 1e-3 * whole.diag < seen[-1][1]
+    sub = CurveProblem(curve_target(pts), CurveConfig.preset("default", max_distance=1e-3, search_points=200))
+    assert sub.m < len(pts)
+    sub.model.fit((0, sub.m - 1), 12)
+    assert seen[-1] is None  # the final check refits a subsample's segments on all points: no early stop
+    free = CurveProblem(curve_target(pts), CurveConfig.preset("default"))
+    free.model.fit((0, free.m - 1), 12)
+    assert seen[-1] is None
