@@ -185,7 +185,8 @@ def _ordered(params: np.ndarray, closed: bool) -> np.ndarray:
 def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
               parametrization: Literal["geometric", "index"] = "geometric", iterations: int = 25,
               lo: np.ndarray | None = None, hi: np.ndarray | None = None, rtol: float = 1e-3,
-              warm_params: np.ndarray | None = None, closed: bool = False, joint: bool = False) -> CurveFit:
+              warm_params: np.ndarray | None = None, closed: bool = False, joint: bool = False,
+              bracket: tuple[float, float] | None = None) -> CurveFit:
     """Best control polygon of ``n_ctrl`` points for ordered ``target`` points (``closed``: a periodic curve).
 
     ``index``: parameters evenly spaced (the paper's index-wise correspondence), distances index-wise.
@@ -194,6 +195,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
     a third start; the best start after one solve is refined. ``joint``: small near-exact problems are then finished
     by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
+    ``bracket = (goal, hopeless)``: a tolerance search's question is only whether the max distance can be met, so
+    the refinement stops once the max distance is within ``goal``, or above ``hopeless`` after six rounds.
     """
     target = np.asarray(target, dtype=np.float64)
     m = len(target)
@@ -210,7 +213,7 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
     params, dist = min(first, key=lambda pd: float(np.sum(pd[1] ** 2)))
     fit: CurveFit | None = None
     step = 1.0  # over-relaxation of the parameter update: correction creeps along the curve, so steps that
-    for _ in range(max(1, iterations)):  # keep improving grow; a step that does not is retried plainly
+    for rnd in range(max(1, iterations)):  # keep improving grow; a step that does not is retried plainly
         params = _ordered(params, closed)
         ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, closed=closed)
         new_params, dist = _project(ctrl, target, params, degree, closed)
@@ -218,6 +221,9 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
         improved = fit is None or candidate.rms < fit.rms * (1 - rtol)
         if fit is None or candidate.rms < fit.rms:
             fit = candidate
+        if bracket is not None and (dist.max() <= bracket[0] or (rnd >= 5 and fit.distances.max() > bracket[1])):
+            fit = candidate if dist.max() <= bracket[0] else fit
+            break
         if not improved:
             if step == 1.0:
                 break

@@ -168,7 +168,10 @@ class CurveConfig:
     fit_iterations: int = _field(
         25,
         "Foot-point iterations of each least-squares placement (more: slower, slightly tighter).")
-    initial_population: int = _field(1000, "Random genomes drawn in generation 0, before the cut to --population.")
+    initial_population: int = _field(
+        100,
+        "Random genomes drawn in generation 0, before the cut to --population (the paper preset: 1000; with polish "
+        "a genome is scored by its structure, which a first population of --population genomes already covers).")
     population: int = _field(100, "Genomes kept from one generation to the next.")
     min_initial_ops: int = _field(4, "Fewest ops in a random initial genome.")
     max_initial_ops: int = _field(8, "Most ops in a random initial genome.")
@@ -210,7 +213,7 @@ class CurveConfig:
     def preset(cls, name: str = "default", **overrides: Any) -> CurveConfig:
         """A named preset with field overrides (unknown fields raise ConfigError)."""
         paper = dict(fitness="index", polish=False, bounds_margin=0.0, local_add=False, move_scale=0.1,
-                     generations=300, stall_generations=0, threshold=-1.0, closure="open", find_corners=False,
+                     initial_population=1000, generations=300, stall_generations=0, threshold=-1.0, closure="open", find_corners=False,
                      search_points=0)
         return _preset(cls, "curve", name, paper, overrides)
 

@@ -20,7 +20,9 @@ template. Two evaluations are offered:
   points, then ``corner`` ops), so the saved genome replays exactly to the result. With X the final curve is
   checked on all points, both ways; segments that miss get more control points where the residual is (refitted
   on all their points when the search saw a subsample, or on the data's model when the points alone are too
-  coarse); a remaining miss is reported in ``metrics["tolerance_met"]``.
+  coarse), and a segment that still misses is cut in two where it misses most (a C0 joint: the paper's
+  segmentation, so each part gets its own knot spacing); a remaining miss is reported in
+  ``metrics["tolerance_met"]``.
 """
 
 from __future__ import annotations
@@ -47,6 +49,21 @@ from .config import CurveConfig
 from .curve_model import CurveModel
 from .inputs import CurveTarget, curve_target
 from .result import Result
+
+
+def _common_prefix(a: tuple, b: tuple) -> int:
+    """Length of the common prefix of two tuples (slice comparisons: identical items compare in C)."""
+    n = min(len(a), len(b))
+    if a[:n] == b[:n]:
+        return n
+    lo, hi = 0, n
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if a[:mid] == b[:mid]:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 class CurveWarning(UserWarning):
@@ -108,6 +125,8 @@ class CurveProblem:
         self._chord = chord_length_params(self.points)
         self._trie: dict = {}
         self._trie_size = 0
+        self._path_ops: tuple = ()
+        self._path: list = [(self.template, self._trie)]
         subsampled = len(self.points) < len(prep.points)
         # The search samples the curve more coarsely than the final check: a margin (segments a subsampled
         # search gets wrong are refitted on all their points by the final check).
@@ -132,7 +151,45 @@ class CurveProblem:
 
     def _walk(self, ops: tuple, keep: list | None = None) -> tuple[curve_ops.Polygon, dict]:
         """Walk ``ops`` through the trie (applying each new op once); ``keep`` collects the valid ones (an add
-        beyond :attr:`max_ctrl` counts as invalid there)."""
+        beyond :attr:`max_ctrl` counts as invalid there).
+
+        The last walk's path is kept: a walk resumes where it leaves the previous one, so the growing prefixes
+        of a mutation (``random_gene`` per mutated gene) cost the new ops only, not the whole genome each time.
+        """
+        start = _common_prefix(ops, self._path_ops)
+        path = self._path
+        del path[start + 1:]
+        state, children = path[start]
+        for op in ops[start:]:
+            entry = children.get(op)
+            if entry is None:
+                try:
+                    nxt = op.apply(state)
+                except OpError:
+                    nxt = state
+                entry = children[op] = (nxt, {})
+                self._trie_size += 1
+            path.append(entry)
+            state, children = entry
+        self._path_ops = ops
+        if keep is not None:
+            kept, prev, capped = [], self.template, False
+            for op, (nxt, _) in zip(ops, path[1:]):
+                if isinstance(op, curve_ops.AddPoint) and nxt is not prev and prev.n >= self.max_ctrl:
+                    capped = True
+                    break
+                if nxt is not prev:
+                    kept.append(op)
+                prev = nxt
+            if capped:  # a dropped add changes every later state: the plain walk, op by op
+                return self._capped_walk(ops, keep)
+            keep.extend(kept)
+        if self._trie_size >= 200_000:
+            self._reset_trie()
+        return state, children
+
+    def _capped_walk(self, ops: tuple, keep: list) -> tuple[curve_ops.Polygon, dict]:
+        """:meth:`_walk` with ``keep`` when some add would exceed :attr:`max_ctrl` (that add is skipped)."""
         state, children = self.template, self._trie
         for op in ops:
             entry = children.get(op)
@@ -144,14 +201,18 @@ class CurveProblem:
                 entry = children[op] = (nxt, {})
                 self._trie_size += 1
             nxt = entry[0]
-            if keep is not None:
-                if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
-                    continue
-                keep.append(op)
+            if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
+                continue
+            keep.append(op)
             state, children = entry
+        self._path_ops, self._path = (), [(self.template, self._trie)]
         if self._trie_size >= 200_000:
-            self._trie, self._trie_size = {}, 0
+            self._reset_trie()
         return state, children
+
+    def _reset_trie(self) -> None:
+        self._trie, self._trie_size = {}, 0
+        self._path_ops, self._path = (), [(self.template, self._trie)]
 
     def random_gene(self, rng: np.random.Generator, prefix: tuple) -> genome_mod.Op:
         poly = self._state(prefix)
@@ -358,8 +419,10 @@ class CurveProblem:
 
         Without a limit the placement is refined to convergence. With one, the curve is checked on all points
         (both ways) and segments that miss get more control points (5 %, doubling each round), or, once at their
-        most, are fitted to the data's model instead of the points (up to eight rounds; the best round is kept). ``hurry``: the
-        search's placement as it is (no refinement, no check)."""
+        most, are fitted to the data's model instead of the points; a segment that still misses (or that more
+        points made worse) is cut in two where it misses most, so each part gets its own knot spacing (up to
+        twelve rounds; the best round is kept). ``hurry``: the search's placement as it is (no refinement, no
+        check)."""
         corners, n = self.structure(genome)
         counts = self.model.allocation(corners, n)
         if counts is None:  # the genome's count does not fit its corners: their fewest, else no corners
@@ -372,58 +435,100 @@ class CurveProblem:
         if self.config.max_distance is None or hurry:
             ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
             return ctrl, idx, corners, counts
-        keys = self.model.segments(corners)
         full = self.prepared.points
         tree = cKDTree(full)
         data_corners = self.prepared.candidates  # the data's model is the data's: sharp at every candidate
         limit = self.config.max_distance * self.diag
-        grown, best = list(counts), None
-        owner = np.zeros(self.m, dtype=np.int64)  # the segment of each search point
-        for i, (a, b) in enumerate(keys):
-            if (a, b) != (-1, -1):
-                owner[np.arange(a, b + 1) % self.m] = i
-        last_err, last_count, frozen = np.zeros(len(keys)), list(counts), set()
-        for rnd in range(8):
-            ctrl, idx = self.model.assemble(corners, tuple(grown))
+        keys = self.model.segments(corners)
+        grown, best = dict(zip(keys, counts)), None
+        last_err: dict = {}
+        last_count: dict = {}
+        frozen: set = set()
+        for rnd in range(12):
+            counts = tuple(grown[k] for k in keys)
+            ctrl, idx = self.model.assemble(corners, counts)
             spline = bspline.make_spline(ctrl, self.degree, self.closed, idx)
             there, back, samples = two_sided(spline, full, self.closed, per_span=32, corners=data_corners,
                                              with_samples=True)
             worst = max(float(there.max()), float(back.max()))
             if best is None or worst < best[0]:  # growing can make an out-of-reach fit worse: keep the best
-                best = (worst, ctrl, idx, tuple(grown))
+                best = (worst, ctrl, idx, corners, counts)
             bad = np.flatnonzero(there > limit)
             far = back > limit
             if not bad.size and not far.any():
                 break
             where = np.concatenate([bad, tree.query(samples[far])[1]]).astype(np.int64)
             errors = np.concatenate([there[bad], back[far]])
-            seg_err = np.zeros(len(keys))
-            np.maximum.at(seg_err, owner[np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)], errors)
-            changed = False
+            site = np.searchsorted(self.prepared.search, where).clip(0, self.m - 1)  # search index of each miss
+            seg_err, seg_site = np.zeros(len(keys)), np.zeros(len(keys), dtype=np.int64)
+            for owner in self._owners(keys):  # a miss at a joint counts for both segments that meet there
+                for j in np.argsort(errors):  # ascending: each segment ends with its worst miss
+                    o = owner[site[j]]
+                    if errors[j] >= seg_err[o]:
+                        seg_err[o], seg_site[o] = errors[j], site[j]
+            changed, splits = False, {}
             for i in np.flatnonzero(seg_err > limit):
-                key, top = keys[i], self.model.max_count(keys[i])
-                if i in frozen:
+                key = keys[i]
+                top = self.model.max_count(key)
+                if key in frozen:
+                    splits[key] = int(seg_site[i])
                     continue
-                if seg_err[i] > last_err[i] > 0.0:  # its growth made it worse (an overfit): back, and keep it
-                    grown[i] = last_count[i]
-                    frozen.add(i)
+                if seg_err[i] > last_err.get(key, 0.0) > 0.0:  # its growth made it worse (an overfit): back
+                    grown[key] = last_count[key]
+                    frozen.add(key)
+                    splits[key] = int(seg_site[i])
                     changed = True
                     continue
-                last_err[i], last_count[i] = seg_err[i], grown[i]
+                last_err[key], last_count[key] = seg_err[i], grown[key]
                 if self.model.use_all(key):  # the search's subsample misses between its points: fit them all
-                    self.model.bound(key, grown[i])
-                    grown[i] = self.model.need(key, self.limit)
+                    self.model.bound(key, grown[key])
+                    grown[key] = self.model.need(key, self.limit)
                     changed = True
-                elif grown[i] < top:
-                    grown[i] = min(top, grown[i] + max(1, grown[i] // 20) * min(2 ** rnd, 4))  # faster if it persists
+                elif grown[key] < top:
+                    grown[key] = min(top, grown[key] + max(1, grown[key] // 20) * min(2 ** rnd, 4))  # faster if it persists
                     changed = True
                 elif self.model.densify(key):
-                    grown[i] = self.model.need(key, self.limit)
+                    grown[key] = self.model.need(key, self.limit)
                     changed = True
+                else:
+                    splits[key] = int(seg_site[i])
+            split = self._split(corners, splits)
+            if split != corners:  # uniform knots cannot follow this segment: cut it where it misses most
+                corners, keys, changed = split, self.model.segments(split), True
+                for key in keys:
+                    if key not in grown:
+                        grown[key] = self.model.need(key, self.limit)
             if not changed:
                 break
-        _, ctrl, idx, counts = best
+        _, ctrl, idx, corners, counts = best
         return ctrl, idx, corners, counts
+
+    def _owners(self, keys: list) -> tuple[np.ndarray, np.ndarray]:
+        """The segment (index into ``keys``) of each search point: the one starting at a joint, and the one ending
+        there (the same inside a segment)."""
+        owners = []
+        for order in (range(len(keys)), range(len(keys) - 1, -1, -1)):
+            owner = np.zeros(self.m, dtype=np.int64)
+            for i in order:
+                a, b = keys[i]
+                if (a, b) != (-1, -1):
+                    owner[np.arange(a, b + 1) % self.m] = i
+            owners.append(owner)
+        return owners[0], owners[1]
+
+    def _split(self, corners: tuple[int, ...], splits: dict) -> tuple[int, ...]:
+        """``corners`` with each segment of ``splits`` cut (a C0 joint) at its search point, kept at least one
+        point inside it: the paper's segmentation at the points a single uniform-knot piece cannot follow."""
+        out = set(corners)
+        for (a, b), at in splits.items():
+            if (a, b) == (-1, -1):
+                out.add(int(at))
+                continue
+            if b - a < 2:
+                continue
+            rel = int(np.clip(np.mod(at - a, self.m), 1, b - a - 1))
+            out.add((a + rel) % self.m)
+        return tuple(sorted(out))
 
 
 def curve_metrics(ctrl: np.ndarray, target: CurveTarget | np.ndarray, degree: int, closed: bool = False,

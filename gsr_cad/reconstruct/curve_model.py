@@ -159,9 +159,14 @@ class CurveModel:
         # the BIC's) small segments get four times the rounds and a joint step (an unconverged fit of the true
         # count would lose to more points). With a limit the minimax step follows instead.
         rounds = self.config.fit_iterations * (4 if len(pts) <= 400 and self.limit is None else 1)
-        fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
-                        hi=self.hi, warm_params=warm, closed=closed, joint=self.limit is None)
         limit = self.limit
+        # A tolerance search asks whether n points can meet the limit: settled once well within it (0.6: a looser
+        # stop leaves fits whose curve side or warm-started successors miss) or far above it. Not on a subsample:
+        # there the final check refits on all points, and fits stopped early cost points there.
+        bracket = None if limit is None or self.full is not None else (0.6 * limit * self.diag,
+                                                                       4.0 * limit * self.diag)
+        fit = fit_curve(pts, n, self.degree, parametrization=self.config.fitness, iterations=rounds, lo=self.lo,
+                        hi=self.hi, warm_params=warm, closed=closed, joint=limit is None, bracket=bracket)
         if limit is not None and limit < fit.distances.max() / self.diag < 3 * limit:
             fit = minimax_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi,  # a tolerance is a maximum
                                  goal=0.9 * limit * self.diag)
