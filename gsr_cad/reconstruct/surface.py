@@ -79,13 +79,13 @@ from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
 from ..geometry.surface_distance import area_samples, cloud_distance, mixed_mean_distance, sampling_radius
 from ..ops import mesh_kernel as MK
-from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
+from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
-from .refine import refine
+from .refine import _inradius, refine
 from .result import Result
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
@@ -234,10 +234,69 @@ class SurfaceProblem:
 
     # --- GA protocol -------------------------------------------------------------------------------------
     def seed_genomes(self) -> list[tuple]:
-        """Starts from the target's feature lines when crease ops are on (:func:`feature_genomes`), built in at
-        most a quarter of ``max_seconds`` (when set)."""
+        """Starts for the search: the protrusion starts of :meth:`protrusion_seeds`, and starts from the
+        target's feature lines when crease ops are on (:func:`feature_genomes`), built in at most a quarter
+        of ``max_seconds`` (when set)."""
+        seeds = self.protrusion_seeds()
         if self.proposals is None:
+            return seeds
+        return seeds + self._feature_seeds()
+
+    def protrusion_seeds(self) -> list[tuple]:
+        """Starts for a target with a bump on one side of the template. A candidate moves a template face in
+        by a share of the template's depth along its normal (``PROTRUSION_DEPTHS``), insets it by a share of
+        its size (``PROTRUSION_INSETS``) and extrudes it back out by as much, so that the template's body spans
+        the target's body and the extruded face its bump (a template placed on the whole box stretches its
+        body over the bump, and from there no fit reaches inset then extrude). Each face is tried with the
+        middle candidate, as built; when one face is clearly the best (its cost below ``PROTRUSION_MARGIN``
+        times the faces' median: a bump, not a rounding), its candidates are ranked as built and the
+        ``PROTRUSION_FITS`` best fitted until they converge (structures compared nearly converged), kept as
+        ``I E V...`` genomes. Needs I, E and V in ``op_kinds``; empty otherwise."""
+        if not {"I", "E", "V"} <= set(self.config.op_kinds):
             return []
+        normals = _unit_rows(self.template.face_newell)
+        depth = self.template.vertices @ normals.T  # (vertices, faces): heights along each face's normal
+        extent = depth.max(axis=0) - depth.min(axis=0)
+        middle = (PROTRUSION_DEPTHS[len(PROTRUSION_DEPTHS) // 2], PROTRUSION_INSETS[-1])
+        probe = [(self._protrusion(f, *middle, float(extent[f])), f) for f in range(self.template.n_faces)]
+        costs = np.array([c[0] for c, _ in probe])
+        finite = costs[np.isfinite(costs)]
+        if len(finite) < 3 or finite.min() >= PROTRUSION_MARGIN * np.median(finite):
+            return []
+        face = probe[int(np.argmin(costs))][1]
+        ranked = sorted((self._protrusion(face, share, inset, float(extent[face]))
+                         for share, inset in itertools.product(PROTRUSION_DEPTHS, PROTRUSION_INSETS)),
+                        key=lambda t: t[0])
+        rounds = max(self.config.final_polish_rounds, 1)
+        out: list[tuple[float, tuple]] = []
+        for cost, ops, built in ranked[:PROTRUSION_FITS]:
+            if built is None:
+                continue
+            with contextlib.suppress(GsrError):
+                vertices, cost = self.fit(built, rounds, min_gain=1.0, adaptive=True)
+                moves, _, refused = self._moves(self.control_mesh(ops), vertices)
+                if not refused:
+                    out.append((cost, ops + moves))
+        return [genome for _, genome in sorted(out, key=lambda t: t[0])]
+
+    def _protrusion(self, face: int, share: float, inset: float, extent: float
+                    ) -> tuple[float, tuple, PolyMesh | None]:
+        """One candidate of :meth:`protrusion_seeds`: its cost as built, its ops on the template (an inset and an
+        extrude) and the control mesh they build with the face moved in (inf, (), None when an op refuses)."""
+        h = share * extent
+        try:
+            moved = MK.translate_face(self.template, face, -h)
+            ops = (Inset(face, inset * _inradius(moved, face)), Extrude(face, h))
+            built = moved
+            for op in ops:
+                built = op.apply(built)
+            built = self.control_mesh(ops).with_vertices(built.vertices)
+            return self.fit(built, 0)[1], ops, built
+        except GsrError:
+            return math.inf, (), None
+
+    def _feature_seeds(self) -> list[tuple]:
+        """The feature-line starts of :func:`feature_genomes`."""
         budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else None
 
         def scored(genome: tuple) -> tuple[float, PolyMesh | None]:  # structures compared nearly converged
@@ -537,6 +596,16 @@ class SurfaceProblem:
             if len(kept) == len(candidate) and np.abs(state.vertices - want).max() <= 1e-12 * self.diag:
                 out = candidate
         return out
+
+
+PROTRUSION_DEPTHS = (0.2, 0.35, 0.5)
+"""Shares of the template's depth along a face's normal that :meth:`SurfaceProblem.protrusion_seeds` tries as
+the bump's height."""
+PROTRUSION_INSETS = (0.2, 0.45)
+"""Shares of the face's inradius that the protrusion starts inset the face by."""
+PROTRUSION_FITS = 2  # protrusion starts fitted to convergence (the best ranked as built)
+PROTRUSION_MARGIN = 0.9
+"""A face is taken for a bump's when its probe costs below this share of the median face's."""
 
 
 _FREEZE_PASSES = 8
