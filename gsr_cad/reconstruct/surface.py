@@ -506,25 +506,30 @@ class SurfaceProblem:
         """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
         vertices did not get there)``.
 
-        The ops refuse a move that would fold a face, and whether one does can depend on the order. First
-        each vertex gets one op, in passes while they make progress; if some vertex is left, the whole
-        move is instead made in 2, 4, 8 or 16 equal stages (every vertex a step per stage, following the
-        straight path between the two meshes, each stage in passes); if that fails too, the first attempt's
-        partial moves stand.
+        The ops refuse a move that would fold a face, and whether one does depends on the order. Each vertex
+        first gets one op, in passes while they make progress, longest moves first (:func:`_move_order`);
+        the vertices left then follow their straight paths in 2, 4, 8 or 16 equal stages (the others are
+        already there: one op each, a few more only for the vertices that need them); failing that, every
+        vertex follows the straight path between the two meshes in stages; failing that too, the first
+        attempt's partial moves stand. Staged moves are then merged vertex by vertex where the history still
+        replays (:func:`_compact_moves`).
         """
-        moves, current, refused = moves_to(state, goal, 1e-12 * self.diag)
+        tol = 1e-12 * self.diag
+        goal = np.asarray(goal, dtype=np.float64)
+        moves, current, refused = _ordered_moves(state, goal, tol)
         if not refused:
             return moves, current, 0
-        start = state.vertices
-        for stages in (2, 4, 8, 16):
-            trial, steps = state, []
-            for k in range(1, stages + 1):
-                stage, trial, left = moves_to(trial, start + (k / stages) * (goal - start), 1e-12 * self.diag)
-                steps += stage
-                if left:
-                    break
-            else:
-                return tuple(steps), trial, 0
+        for origin, ops in ((current, moves), (state, ())):
+            start = origin.vertices
+            for stages in (2, 4, 8, 16):
+                trial, steps = origin, list(ops)
+                for k in range(1, stages + 1):
+                    stage, trial, left = _ordered_moves(trial, start + (k / stages) * (goal - start), tol)
+                    steps += stage
+                    if left:
+                        break
+                else:
+                    return _compact_moves(state, steps), trial, 0
         return moves, current, refused
 
     def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
@@ -571,6 +576,22 @@ class SurfaceProblem:
                 break
         return best
 
+    def pruned(self, genome: tuple) -> tuple:
+        """``genome`` without its negligible ``translate_vertex`` ops (shorter than ``NEGLIGIBLE_MOVE`` times
+        ``history_tolerance``), provided the rest replays and its cost exceeds ``genome``'s by at most
+        ``history_tolerance``; ``genome`` itself otherwise."""
+        genome = tuple(genome)
+        cut = NEGLIGIBLE_MOVE * self.config.history_tolerance * self.diag
+        short = tuple(op for op in genome
+                      if not (isinstance(op, TranslateVertex) and float(np.linalg.norm(op.delta)) < cut))
+        if short == genome or len(self.walk(short)[0]) != len(short):
+            return genome
+        try:
+            limit = self.evaluate(genome, 0).cost + self.config.history_tolerance
+            return short if self.evaluate(short, 0).cost <= limit else genome
+        except GsrError:
+            return genome
+
     def merged(self, genome: tuple) -> tuple:
         """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
         net move), run by run where the result still replays to the same mesh (within 1e-12 of the
@@ -608,6 +629,10 @@ PROTRUSION_MARGIN = 0.9
 """A face is taken for a bump's when its probe costs below this share of the median face's."""
 
 
+NEGLIGIBLE_MOVE = 0.1
+"""A ``translate_vertex`` op shorter than this share of ``history_tolerance`` (of the diagonal) is dropped from
+the saved history (:meth:`SurfaceProblem.pruned`): a vertex move changes the limit surface by at most its length."""
+
 _FREEZE_PASSES = 8
 _FREEZE_KEEP = 0.1  # a step frozen below this share of its length is given up
 _RETRIES = 3
@@ -616,6 +641,48 @@ _CONVEX_SIN = math.sin(math.radians(3.0))
 _STIFF_RELAX, _STIFF_END = 0.5, 1e-3  # adaptive fits: stiffness annealed, coarse to fine
 _SMOOTH_TRIES = 4
 _SMOOTH_START = 1e-2  # first weight of the step's smoothness (relative to the system's mean diagonal)
+
+
+def _ordered_moves(state: PolyMesh, goal: np.ndarray, tol: float) -> tuple[tuple, PolyMesh, int]:
+    """:func:`~gsr_cad.ops.mesh.moves_to` with the vertices renumbered so that the longest moves come first
+    (a long move is the one a neighbour's earlier move most often makes fold), then in index order."""
+    order = _move_order(state.vertices, goal)
+    moves, current, refused = moves_to(state, goal, tol, order)
+    if refused:
+        plain, mesh, left = moves_to(state, goal, tol)
+        if left < refused:
+            return plain, mesh, left
+    return moves, current, refused
+
+
+def _compact_moves(state: PolyMesh, moves: list[TranslateVertex]) -> tuple:
+    """``moves`` (which replay on ``state``) with each vertex's several moves merged into one, at the place of
+    its last or its first, where the whole sequence still replays: the same end state, fewer steps."""
+    moves = list(moves)
+    before = [state]  # before[i]: the state op i applies to
+    for op in moves:
+        before.append(op.apply(before[-1]))
+    for vertex in dict.fromkeys(op.vertex for op in moves):
+        at = [i for i, op in enumerate(moves) if op.vertex == vertex]
+        if len(at) < 2:
+            continue
+        net = tuple(float(x) for x in np.sum([moves[i].delta for i in at], axis=0))
+        for keep in (at[-1], at[0]):
+            trial = [TranslateVertex(vertex, net) if i == keep else op for i, op in enumerate(moves)
+                     if i == keep or i not in at]
+            states = before[:at[0] + 1]
+            try:
+                for op in trial[at[0]:]:
+                    states.append(op.apply(states[-1]))
+            except OpError:
+                continue
+            moves, before = trial, states
+            break
+    return tuple(moves)
+
+
+def _move_order(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    return np.argsort(-np.linalg.norm(goal - start, axis=1), kind="stable")
 
 
 def _smoothing(mesh: PolyMesh) -> sp.csc_matrix:
@@ -996,6 +1063,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
         if growth is not None:
             final, pareto = growth.genome, growth.front
+    if final and not hurry():
+        final = problem.pruned(problem.merged(final))
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
