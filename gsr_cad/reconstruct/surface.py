@@ -74,6 +74,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import ConfigError, GsrError, InputError, OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
+from ..ga.pareto import has_pymoo, non_dominated
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
@@ -909,13 +910,11 @@ def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, ex
 
 def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, tuple]]:
     """The accuracy/complexity front: ``(control vertices, distance, genome)`` of the evaluated genomes that
-    no other beats in both (fewer or as many vertices and a lower distance), by vertex count."""
-    out: list[tuple[int, float, tuple]] = []
-    for n in sorted(evaluated):
-        cost, genome = evaluated[n]
-        if math.isfinite(cost) and (not out or cost < out[-1][1]):
-            out.append((n, cost, genome))
-    return out
+    no other dominates in (control vertices, distance) (:func:`~gsr_cad.ga.pareto.non_dominated`, pymoo's
+    non-dominated sort when installed), by vertex count."""
+    entries = [(n, float(evaluated[n][0]), evaluated[n][1]) for n in sorted(evaluated)]
+    keep = non_dominated(np.array([[n, cost] for n, cost, _ in entries], dtype=np.float64).reshape(-1, 2))
+    return [entries[i] for i in keep]
 
 
 def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
@@ -1090,7 +1089,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "ops": _letters(final),
         **genus_metrics(control, *target_genus(tgt)),
         "template_placement": placement.to_json(),
-        "front": [{"vertices": n, "ops": _letters(g), "distance": c} for n, c, g in pareto],
+        "front": [{"vertices": n, "ops": _letters(g), "distance": c, "n_ops": len(g)} for n, c, g in pareto],
+        "front_sort": "pymoo non-dominated sorting" if has_pymoo() else "non-dominated sorting (numpy)",
     })
     if config.max_distance is not None:
         # the front's measure: the search's symmetric distance (the reported fit_to_data also holds a mesh
