@@ -354,6 +354,10 @@ class SurfaceProblem:
                                 accept=lambda history: self.evaluate(history, 0).cost <= limit,
                                 should_stop=should_stop)
 
+    def complexity(self, genome: tuple) -> float:
+        """The number of control vertices ``genome`` builds (NSGA-II's second objective)."""
+        return float(self.walk(genome)[1].n_vertices)
+
     def niche(self, genome: tuple) -> tuple:
         """The connectivity of the control mesh ``genome`` builds (the GA polishes the best of a few)."""
         return self.walk(genome)[1].topology_key
@@ -816,6 +820,7 @@ def _ga_config(config: SurfaceConfig) -> GAConfig:
         stall_generations=config.stall_generations or None,
         local_search_every=config.polish_every,
         local_search_count=config.polish_niches,
+        survival=config.survival,
     )
 
 
