@@ -252,8 +252,9 @@ class SurfaceProblem:
         middle candidate, as built; when one face is clearly the best (its cost below ``PROTRUSION_MARGIN``
         times the faces' median: a bump, not a rounding), its candidates are ranked as built and the
         ``PROTRUSION_FITS`` best fitted until they converge (structures compared nearly converged), kept as
-        ``I E V...`` genomes. Needs I, E and V in ``op_kinds``; empty otherwise."""
-        if not {"I", "E", "V"} <= set(self.config.op_kinds):
+        ``I E V...`` genomes. Needs I, E and V in ``op_kinds`` and a template of at most ``PROTRUSION_MAX_FACES``
+        faces; empty otherwise."""
+        if not {"I", "E", "V"} <= set(self.config.op_kinds) or self.template.n_faces > PROTRUSION_MAX_FACES:
             return []
         normals = _unit_rows(self.template.face_newell)
         depth = self.template.vertices @ normals.T  # (vertices, faces): heights along each face's normal
@@ -630,6 +631,7 @@ the bump's height."""
 PROTRUSION_INSETS = (0.2, 0.45)
 """Shares of the face's inradius that the protrusion starts inset the face by."""
 PROTRUSION_FITS = 2  # protrusion starts fitted to convergence (the best ranked as built)
+PROTRUSION_MAX_FACES = 24  # larger templates get no protrusion probe (one cost per face)
 PROTRUSION_MARGIN = 0.9
 """A face is taken for a bump's when its probe costs below this share of the median face's."""
 
