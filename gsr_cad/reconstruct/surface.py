@@ -32,6 +32,13 @@ never into a mesh the ops would refuse (folded or flipped faces). It is used thr
   move per vertex after its other ops where they replay alone, so the saved genome is short and replays
   exactly to the saved control mesh.
 
+Protrusion starts (beyond the paper). A template placed on the target's whole box stretches its body over
+a bump on one side, and from there no fit reaches inset then extrude; when one template face is clearly the
+best place for a bump, the first population also gets that face moved in, inset and extruded back out,
+fitted to convergence (:meth:`SurfaceProblem.protrusion_seeds`). With ``survival="nsga2"`` the search keeps
+NSGA-II's spread of (distance, control vertices) rather than the lowest distances
+(:mod:`gsr_cad.ga.pareto`); the front is the non-dominated set of every cage scored either way.
+
 History rewrite (beyond the paper). Several histories build the same connectivity (on a cube, an inset
 then an extrude of the inset face has the connectivity of two parallel edge loops), and with the polish
 placing the vertices they fit equally well, so the search keeps whichever it met first, with a move for
