@@ -159,6 +159,7 @@ def checks(rows: list[Row]) -> list[str]:
     if r:
         out.append(f"- inset_extrude finds inset then extrude: found {run_length(r.ops)} ({r.found}): "
                    f"{verdict(r.found == 'ops')}")
+    out += density_checks(rows)
     rnd = [r.mean for r in rows if r.sample.startswith("random_ops") and r.kind == "mesh"]
     if rnd:
         med = statistics.median(rnd)
@@ -169,6 +170,29 @@ def checks(rows: list[Row]) -> list[str]:
                  if b.mean > 2 * max(a.mean, FLOOR)]
         out.append(f"- point cloud within 2x of the mesh version (distances below {FLOOR:g} count as {FLOOR:g}): "
                    f"{verdict(not worse)}" + (f"; worse: {', '.join(worse)}" if worse else ""))
+    return out
+
+
+DENSITY_GOALS = {"extended": (1e-4, 15.0), "flattened_extended": (2e-3, 90.0)}
+"""Issue 11's goals at every density (levels 1-4 and the 5,000-point cloud): mean distance and seconds."""
+
+
+def density_checks(rows: list[Row]) -> list[str]:
+    """Issue 11's done-when targets over the density rows (``mesh`` is level 2): the extended and flattened
+    cubes within their distance and time at every level and as a cloud, inset then extrude found at each."""
+    out = []
+    dense = [r for r in rows if r.kind in ("mesh",) + LEVEL_KINDS]
+    for name, (goal, seconds) in DENSITY_GOALS.items():
+        mine = [r for r in dense if r.sample == name]
+        if len(mine) > 1:
+            bad = [f"{r.kind} ({_g(r.mean)}, {r.seconds:.0f} s)" for r in mine if r.mean > goal or r.seconds > seconds]
+            out.append(f"- {name} at {', '.join(r.kind for r in mine)}: mean <= {goal:g} in <= {seconds:g} s: "
+                       + ("met" if not bad else "NOT met: " + ", ".join(bad)))
+    mine = [r for r in dense if r.sample == "inset_extrude"]
+    if len(mine) > 1:
+        bad = [f"{r.kind} ({run_length(r.ops)})" for r in mine if r.found != "ops"]
+        out.append(f"- inset_extrude at {', '.join(r.kind for r in mine)}: inset then extrude found: "
+                   + ("met" if not bad else "NOT met: " + ", ".join(bad)))
     return out
 
 
@@ -212,7 +236,7 @@ def markdown(rows: list[Row], args: argparse.Namespace, load: float, interrupted
                      f"{r.generations} | "
                      f"{r.evaluations} | {r.seconds:.1f} | {r.found} | {run_length(r.ops)} ({r.true_ops or '-'}) | "
                      f"{searched} | {_g(r.before)} -> {_g(r.mean)} ({r.polish_seconds:.2f} s) | {paper} |")
-    tail = [*ablation_lines(list(ablation)), "", "Done-when targets (issue 4):", "", *checks(rows), ""]
+    tail = [*ablation_lines(list(ablation)), "", "Done-when targets (issues 4 and 11):", "", *checks(rows), ""]
     return "\n".join(head + lines + tail)
 
 

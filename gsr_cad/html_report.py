@@ -92,6 +92,27 @@ def _convergence(go: Any, result: Result) -> Any:
     return fig
 
 
+def _front(go: Any, result: Result) -> Any | None:
+    """The accuracy/complexity front of ``metrics["front"]`` (distance against control vertices), the result's
+    own cage marked; None without a front."""
+    m = result.metrics or {}
+    points = [p for p in m.get("front") or [] if isinstance(p, dict) and "vertices" in p and "distance" in p]
+    if not points:
+        return None
+    fig = go.Figure()
+    fig.add_trace(go.Scatter(x=[p["vertices"] for p in points], y=[p["distance"] for p in points], name="front",
+                             mode="lines+markers", line={"shape": "hv"}, text=[str(p.get("ops", "")) for p in points],
+                             hovertemplate="%{x} control vertices: %{y:.3g} of the diagonal<br>%{text}"))
+    chosen = [p for p in points if p["vertices"] == m.get("n_control_vertices")]
+    if chosen:
+        fig.add_trace(go.Scatter(x=[chosen[0]["vertices"]], y=[chosen[0]["distance"]], name="result", mode="markers",
+                                 marker={"size": 12, "symbol": "star"}))
+    positive = all(isinstance(p["distance"], (int, float)) and p["distance"] > 0 for p in points)
+    fig.update_layout(height=320, margin={"t": 30}, xaxis_title="control vertices",
+                      yaxis_title="distance / diagonal", yaxis_type="log" if positive else "linear")
+    return fig
+
+
 def _title(result: Result, title: str | None, default: str) -> str:
     target = (result.config or {}).get("target")
     return title or (target.get("name") if isinstance(target, dict) else None) or default
@@ -280,6 +301,10 @@ def surface_html(result: Result, path: str | os.PathLike[str], target: Any = Non
         sections.append(("op history (slider: the control mesh and its limit surface after each op)",
                          _div(_surface_history(go, states, result.genome, levels, boundary, unit), "history")))
     sections.append(("convergence", _div(_convergence(go, result), "convergence")))
+    pareto = _front(go, result)
+    if pareto is not None:
+        sections.append(("accuracy/complexity front (the simplest cage at each distance; --max-distance picks on "
+                         "it)", _div(pareto, "front")))
     name = _title(result, title, "surface")
     ops = str((result.metrics or {}).get("ops", ""))
     page = _page(f"{name}: surface report (ops {run_length(ops) or '-'})", summary_lines(result), sections)

@@ -267,7 +267,7 @@ def test_surface_report_loads_in_chromium_with_target_and_result(surface_page, t
     figures, errors, requests = open_in_chromium(page, tmp_path / "profile")
     assert errors == [] and requests == []
     by_id = {f["id"]: f for f in figures}
-    assert {"surfaces", "history", "convergence"} <= set(by_id) and all(f["drawn"] for f in figures)
+    assert {"surfaces", "history", "convergence", "front"} <= set(by_id) and all(f["drawn"] for f in figures)
     side = dict(zip(by_id["surfaces"]["names"], by_id["surfaces"]["types"]))
     assert side == {"target": "mesh3d", "result": "mesh3d", "control mesh": "scatter3d"}
     # the history slider holds the template and every step up to the result (two traces per step)
@@ -279,6 +279,7 @@ def test_the_surface_figure_colours_the_result_by_its_distance_in_model_units(su
     text = html.unescape(page.read_text(encoding="utf-8"))
     assert "distance to target, mm" in text and "lengths in mm" in text
     assert "the paper's mixed mean distance" in text
+    assert "accuracy/complexity front" in text and result.metrics["front"]
 
 
 def test_bad_results_raise_typed_errors(tmp_path):

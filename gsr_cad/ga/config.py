@@ -14,6 +14,9 @@ from typing import Any
 from ..errors import ConfigError
 
 SCHEMES = ("steady_state", "plus")
+SURVIVALS = ("cost", "nsga2")
+"""How the plus scheme picks its next population: the lowest costs, or NSGA-II's rank and crowding on (cost,
+the problem's ``complexity``, else the genome's length)."""
 
 _INT_FIELDS = ("initial_population", "population", "min_initial_genes", "max_initial_genes", "generations",
                "n_parents", "max_children", "n_perturb", "n_newcomers", "max_duplicates", "local_search_every",
@@ -31,7 +34,9 @@ class GAConfig:
     ``local_search_every`` = k > 0 polishes the best individual every k generations when the problem has a
     ``local_search`` hook; ``local_search_count`` = n polishes the best of each of the n best niches
     instead (niches by the problem's optional ``niche`` hook, else one per genome), so that a structure
-    that needs a few polishes to show its worth is not starved by the incumbent.
+    that needs a few polishes to show its worth is not starved by the incumbent. ``survival`` (plus scheme):
+    ``"cost"`` keeps the lowest costs, ``"nsga2"`` NSGA-II's survival on (cost, complexity): a spread of the
+    accuracy/complexity front rather than only the most accurate.
     """
 
     scheme: str = "steady_state"
@@ -54,6 +59,7 @@ class GAConfig:
     stall_generations: int | None = None
     local_search_every: int = 0
     local_search_count: int = 1
+    survival: str = "cost"
 
     @classmethod
     def paper_curves(cls, **overrides: Any) -> GAConfig:
@@ -99,6 +105,10 @@ class GAConfig:
         """Return self, or raise ConfigError naming the first absurd value."""
         if self.scheme not in SCHEMES:
             raise ConfigError(f"scheme must be one of {', '.join(SCHEMES)}, not {self.scheme!r}")
+        if self.survival not in SURVIVALS:
+            raise ConfigError(f"survival must be one of {', '.join(SURVIVALS)}, not {self.survival!r}")
+        if self.survival != "cost" and self.scheme != "plus":
+            raise ConfigError(f"survival {self.survival!r} needs the plus scheme")
         for name in _INT_FIELDS:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Integral):

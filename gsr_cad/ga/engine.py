@@ -27,6 +27,7 @@ from ..errors import ConfigError, InputError
 from . import termination
 from .config import GAConfig
 from .evaluators import Evaluator, serial_evaluator
+from .pareto import nsga2_order
 from .problem import GenomeT, Problem
 from .selection import roulette_select
 from .variation import offspring, perturb_one, random_genome
@@ -348,10 +349,14 @@ class GeneticAlgorithm:
         return improved
 
     def _limit_duplicates(self, genomes: list[GenomeT], costs: np.ndarray) -> tuple[list[GenomeT], np.ndarray]:
-        """The best ``population`` individuals with at most ``max_duplicates`` copies of any genome."""
+        """The best ``population`` individuals (by cost, or by NSGA-II's order with ``survival="nsga2"``) with at
+        most ``max_duplicates`` copies of any genome."""
         seen: dict[GenomeT, int] = {}
         keep: list[int] = []
-        for i in np.argsort(costs, kind="stable"):
+        order = np.argsort(costs, kind="stable")
+        if self.config.survival == "nsga2":
+            order = nsga2_order(np.c_[np.asarray(costs, dtype=float), [self._complexity(g) for g in genomes]])
+        for i in order:
             g = genomes[i]
             if seen.get(g, 0) < self.config.max_duplicates:
                 seen[g] = seen.get(g, 0) + 1
@@ -359,6 +364,11 @@ class GeneticAlgorithm:
                 if len(keep) == self.config.population:
                     break
         return [genomes[i] for i in keep], np.asarray(costs, dtype=float)[keep]
+
+    def _complexity(self, genome: GenomeT) -> float:
+        """The problem's ``complexity`` of ``genome`` (NSGA-II's second objective), else its length."""
+        hook = getattr(self.problem, "complexity", None)
+        return float(hook(genome)) if callable(hook) else float(len(genome))
 
     def _finish_generation(self, on_generation: Callable[[GenerationReport], None] | None) -> None:
         best_genome, best_cost = self.best

@@ -514,13 +514,15 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
     raise InputError(f"perturb_op knows only surface ops, got {type(op).__name__}")
 
 
-def moves_to(state: PolyMesh, goal_vertices: np.ndarray, tol: float
+def moves_to(state: PolyMesh, goal_vertices: np.ndarray, tol: float, order: np.ndarray | None = None
              ) -> tuple[tuple[TranslateVertex, ...], PolyMesh, int]:
     """``translate_vertex`` ops taking the vertices of ``state`` that are further than ``tol`` from
     ``goal_vertices`` there, one op each, in passes while the ops accept some (a move that would fold a
-    face now may not after its neighbours moved): ``(ops, resulting mesh, how many were refused)``."""
+    face now may not after its neighbours moved), in index order or, given, that of ``order`` (a
+    permutation of the vertices): ``(ops, resulting mesh, how many were refused)``."""
     goal_vertices = np.asarray(goal_vertices, dtype=np.float64)
-    pending = [int(i) for i in np.flatnonzero(np.linalg.norm(goal_vertices - state.vertices, axis=1) > tol)]
+    far = np.linalg.norm(goal_vertices - state.vertices, axis=1) > tol
+    pending = [int(i) for i in (np.flatnonzero(far) if order is None else np.asarray(order)[far[order]])]
     moves: list[TranslateVertex] = []
     while pending:
         left = []

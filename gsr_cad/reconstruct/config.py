@@ -367,6 +367,11 @@ class SurfaceConfig:
         "Distance (mean of both directions) at which the refinement stops when no --max-distance is given.",
         length=True)
     refine_max_faces: int = _field(1600, "Most faces the refinement may grow the cage to.")
+    survival: str = _field(
+        "cost",
+        "How the search keeps its population: cost (the lowest distances, the paper's) or nsga2 (NSGA-II's rank and "
+        "crowding on distance and control vertices: a spread of the accuracy/complexity front).",
+        choices=("cost", "nsga2"))
     refine_share: float = _field(
         0.8,
         "Share of --max-seconds left to the refinement when it is on (the search stops earlier by as much), in "
@@ -406,7 +411,8 @@ class SurfaceConfig:
 
     def validated(self) -> SurfaceConfig:
         """Return self, or raise ConfigError naming the first absurd setting."""
-        choices = {"template_fit": ("box", "cube"), "boundary": ("all", "corners"), "fitness": SURFACE_FITNESS}
+        choices = {"template_fit": ("box", "cube"), "boundary": ("all", "corners"), "fitness": SURFACE_FITNESS,
+                   "survival": ("cost", "nsga2")}
         for field, allowed in choices.items():
             _check(self, (field,), allowed.__contains__, f"be one of {', '.join(allowed)}")
         kinds = self.op_kinds

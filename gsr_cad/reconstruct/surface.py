@@ -32,6 +32,13 @@ never into a mesh the ops would refuse (folded or flipped faces). It is used thr
   move per vertex after its other ops where they replay alone, so the saved genome is short and replays
   exactly to the saved control mesh.
 
+Protrusion starts (beyond the paper). A template placed on the target's whole box stretches its body over
+a bump on one side, and from there no fit reaches inset then extrude; when one template face is clearly the
+best place for a bump, the first population also gets that face moved in, inset and extruded back out,
+fitted to convergence (:meth:`SurfaceProblem.protrusion_seeds`). With ``survival="nsga2"`` the search keeps
+NSGA-II's spread of (distance, control vertices) rather than the lowest distances
+(:mod:`gsr_cad.ga.pareto`); the front is the non-dominated set of every cage scored either way.
+
 History rewrite (beyond the paper). Several histories build the same connectivity (on a cube, an inset
 then an extrude of the inset face has the connectivity of two parallel edge loops), and with the polish
 placing the vertices they fit equally well, so the search keeps whichever it met first, with a move for
@@ -74,18 +81,19 @@ from scipy.spatial import cKDTree
 
 from ..errors import ConfigError, GsrError, InputError, OpError
 from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_resume
+from ..ga.pareto import has_pymoo, non_dominated
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
 from ..geometry.surface_distance import area_samples, cloud_distance, mixed_mean_distance, sampling_radius
 from ..ops import mesh_kernel as MK
-from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
+from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
-from .refine import refine
+from .refine import _inradius, refine
 from .result import Result
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
@@ -234,10 +242,70 @@ class SurfaceProblem:
 
     # --- GA protocol -------------------------------------------------------------------------------------
     def seed_genomes(self) -> list[tuple]:
-        """Starts from the target's feature lines when crease ops are on (:func:`feature_genomes`), built in at
-        most a quarter of ``max_seconds`` (when set)."""
+        """Starts for the search: the protrusion starts of :meth:`protrusion_seeds`, and starts from the
+        target's feature lines when crease ops are on (:func:`feature_genomes`), built in at most a quarter
+        of ``max_seconds`` (when set)."""
+        seeds = self.protrusion_seeds()
         if self.proposals is None:
+            return seeds
+        return seeds + self._feature_seeds()
+
+    def protrusion_seeds(self) -> list[tuple]:
+        """Starts for a target with a bump on one side of the template. A candidate moves a template face in
+        by a share of the template's depth along its normal (``PROTRUSION_DEPTHS``), insets it by a share of
+        its size (``PROTRUSION_INSETS``) and extrudes it back out by as much, so that the template's body spans
+        the target's body and the extruded face its bump (a template placed on the whole box stretches its
+        body over the bump, and from there no fit reaches inset then extrude). Each face is tried with the
+        middle candidate, as built; when one face is clearly the best (its cost below ``PROTRUSION_MARGIN``
+        times the faces' median: a bump, not a rounding), its candidates are ranked as built and the
+        ``PROTRUSION_FITS`` best fitted until they converge (structures compared nearly converged), kept as
+        ``I E V...`` genomes. Needs I, E and V in ``op_kinds`` and a template of at most ``PROTRUSION_MAX_FACES``
+        faces; empty otherwise."""
+        if not {"I", "E", "V"} <= set(self.config.op_kinds) or self.template.n_faces > PROTRUSION_MAX_FACES:
             return []
+        normals = _unit_rows(self.template.face_newell)
+        depth = self.template.vertices @ normals.T  # (vertices, faces): heights along each face's normal
+        extent = depth.max(axis=0) - depth.min(axis=0)
+        middle = (PROTRUSION_DEPTHS[len(PROTRUSION_DEPTHS) // 2], PROTRUSION_INSETS[-1])
+        probe = [(self._protrusion(f, *middle, float(extent[f])), f) for f in range(self.template.n_faces)]
+        costs = np.array([c[0] for c, _ in probe])
+        finite = costs[np.isfinite(costs)]
+        if len(finite) < 3 or finite.min() >= PROTRUSION_MARGIN * np.median(finite):
+            return []
+        face = probe[int(np.argmin(costs))][1]
+        ranked = sorted((self._protrusion(face, share, inset, float(extent[face]))
+                         for share, inset in itertools.product(PROTRUSION_DEPTHS, PROTRUSION_INSETS)),
+                        key=lambda t: t[0])
+        rounds = max(self.config.final_polish_rounds, 1)
+        out: list[tuple[float, tuple]] = []
+        for cost, ops, built in ranked[:PROTRUSION_FITS]:
+            if built is None:
+                continue
+            with contextlib.suppress(GsrError):
+                vertices, cost = self.fit(built, rounds, min_gain=1.0, adaptive=True)
+                moves, _, refused = self._moves(self.control_mesh(ops), vertices)
+                if not refused:
+                    out.append((cost, ops + moves))
+        return [genome for _, genome in sorted(out, key=lambda t: t[0])]
+
+    def _protrusion(self, face: int, share: float, inset: float, extent: float
+                    ) -> tuple[float, tuple, PolyMesh | None]:
+        """One candidate of :meth:`protrusion_seeds`: its cost as built, its ops on the template (an inset and an
+        extrude) and the control mesh they build with the face moved in (inf, (), None when an op refuses)."""
+        h = share * extent
+        try:
+            moved = MK.translate_face(self.template, face, -h)
+            ops = (Inset(face, inset * _inradius(moved, face)), Extrude(face, h))
+            built = moved
+            for op in ops:
+                built = op.apply(built)
+            built = self.control_mesh(ops).with_vertices(built.vertices)
+            return self.fit(built, 0)[1], ops, built
+        except GsrError:
+            return math.inf, (), None
+
+    def _feature_seeds(self) -> list[tuple]:
+        """The feature-line starts of :func:`feature_genomes`."""
         budget = 0.25 * self.config.max_seconds if self.config.max_seconds > 0 else None
 
         def scored(genome: tuple) -> tuple[float, PolyMesh | None]:  # structures compared nearly converged
@@ -293,6 +361,10 @@ class SurfaceProblem:
         return simplify_history(self.template, genome, REWRITE_TOLERANCES, kinds=self.config.op_kinds,
                                 accept=lambda history: self.evaluate(history, 0).cost <= limit,
                                 should_stop=should_stop)
+
+    def complexity(self, genome: tuple) -> float:
+        """The number of control vertices ``genome`` builds (NSGA-II's second objective)."""
+        return float(self.walk(genome)[1].n_vertices)
 
     def niche(self, genome: tuple) -> tuple:
         """The connectivity of the control mesh ``genome`` builds (the GA polishes the best of a few)."""
@@ -447,25 +519,30 @@ class SurfaceProblem:
         """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
         vertices did not get there)``.
 
-        The ops refuse a move that would fold a face, and whether one does can depend on the order. First
-        each vertex gets one op, in passes while they make progress; if some vertex is left, the whole
-        move is instead made in 2, 4, 8 or 16 equal stages (every vertex a step per stage, following the
-        straight path between the two meshes, each stage in passes); if that fails too, the first attempt's
-        partial moves stand.
+        The ops refuse a move that would fold a face, and whether one does depends on the order. Each vertex
+        first gets one op, in passes while they make progress, longest moves first (:func:`_move_order`);
+        the vertices left then follow their straight paths in 2, 4, 8 or 16 equal stages (the others are
+        already there: one op each, a few more only for the vertices that need them); failing that, every
+        vertex follows the straight path between the two meshes in stages; failing that too, the first
+        attempt's partial moves stand. Staged moves are then merged vertex by vertex where the history still
+        replays (:func:`_compact_moves`).
         """
-        moves, current, refused = moves_to(state, goal, 1e-12 * self.diag)
+        tol = 1e-12 * self.diag
+        goal = np.asarray(goal, dtype=np.float64)
+        moves, current, refused = _ordered_moves(state, goal, tol)
         if not refused:
             return moves, current, 0
-        start = state.vertices
-        for stages in (2, 4, 8, 16):
-            trial, steps = state, []
-            for k in range(1, stages + 1):
-                stage, trial, left = moves_to(trial, start + (k / stages) * (goal - start), 1e-12 * self.diag)
-                steps += stage
-                if left:
-                    break
-            else:
-                return tuple(steps), trial, 0
+        for origin, ops in ((current, moves), (state, ())):
+            start = origin.vertices
+            for stages in (2, 4, 8, 16):
+                trial, steps = origin, list(ops)
+                for k in range(1, stages + 1):
+                    stage, trial, left = _ordered_moves(trial, start + (k / stages) * (goal - start), tol)
+                    steps += stage
+                    if left:
+                        break
+                else:
+                    return _compact_moves(state, steps), trial, 0
         return moves, current, refused
 
     def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
@@ -512,6 +589,22 @@ class SurfaceProblem:
                 break
         return best
 
+    def pruned(self, genome: tuple) -> tuple:
+        """``genome`` without its negligible ``translate_vertex`` ops (shorter than ``NEGLIGIBLE_MOVE`` times
+        ``history_tolerance``), provided the rest replays and its cost exceeds ``genome``'s by at most
+        ``history_tolerance``; ``genome`` itself otherwise."""
+        genome = tuple(genome)
+        cut = NEGLIGIBLE_MOVE * self.config.history_tolerance * self.diag
+        short = tuple(op for op in genome
+                      if not (isinstance(op, TranslateVertex) and float(np.linalg.norm(op.delta)) < cut))
+        if short == genome or len(self.walk(short)[0]) != len(short):
+            return genome
+        try:
+            limit = self.evaluate(genome, 0).cost + self.config.history_tolerance
+            return short if self.evaluate(short, 0).cost <= limit else genome
+        except GsrError:
+            return genome
+
     def merged(self, genome: tuple) -> tuple:
         """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
         net move), run by run where the result still replays to the same mesh (within 1e-12 of the
@@ -539,6 +632,21 @@ class SurfaceProblem:
         return out
 
 
+PROTRUSION_DEPTHS = (0.2, 0.35, 0.5)
+"""Shares of the template's depth along a face's normal that :meth:`SurfaceProblem.protrusion_seeds` tries as
+the bump's height."""
+PROTRUSION_INSETS = (0.2, 0.45)
+"""Shares of the face's inradius that the protrusion starts inset the face by."""
+PROTRUSION_FITS = 2  # protrusion starts fitted to convergence (the best ranked as built)
+PROTRUSION_MAX_FACES = 24  # larger templates get no protrusion probe (one cost per face)
+PROTRUSION_MARGIN = 0.9
+"""A face is taken for a bump's when its probe costs below this share of the median face's."""
+
+
+NEGLIGIBLE_MOVE = 0.1
+"""A ``translate_vertex`` op shorter than this share of ``history_tolerance`` (of the diagonal) is dropped from
+the saved history (:meth:`SurfaceProblem.pruned`): a vertex move changes the limit surface by at most its length."""
+
 _FREEZE_PASSES = 8
 _FREEZE_KEEP = 0.1  # a step frozen below this share of its length is given up
 _RETRIES = 3
@@ -547,6 +655,48 @@ _CONVEX_SIN = math.sin(math.radians(3.0))
 _STIFF_RELAX, _STIFF_END = 0.5, 1e-3  # adaptive fits: stiffness annealed, coarse to fine
 _SMOOTH_TRIES = 4
 _SMOOTH_START = 1e-2  # first weight of the step's smoothness (relative to the system's mean diagonal)
+
+
+def _ordered_moves(state: PolyMesh, goal: np.ndarray, tol: float) -> tuple[tuple, PolyMesh, int]:
+    """:func:`~gsr_cad.ops.mesh.moves_to` with the vertices renumbered so that the longest moves come first
+    (a long move is the one a neighbour's earlier move most often makes fold), then in index order."""
+    order = _move_order(state.vertices, goal)
+    moves, current, refused = moves_to(state, goal, tol, order)
+    if refused:
+        plain, mesh, left = moves_to(state, goal, tol)
+        if left < refused:
+            return plain, mesh, left
+    return moves, current, refused
+
+
+def _compact_moves(state: PolyMesh, moves: list[TranslateVertex]) -> tuple:
+    """``moves`` (which replay on ``state``) with each vertex's several moves merged into one, at the place of
+    its last or its first, where the whole sequence still replays: the same end state, fewer steps."""
+    moves = list(moves)
+    before = [state]  # before[i]: the state op i applies to
+    for op in moves:
+        before.append(op.apply(before[-1]))
+    for vertex in dict.fromkeys(op.vertex for op in moves):
+        at = [i for i, op in enumerate(moves) if op.vertex == vertex]
+        if len(at) < 2:
+            continue
+        net = tuple(float(x) for x in np.sum([moves[i].delta for i in at], axis=0))
+        for keep in (at[-1], at[0]):
+            trial = [TranslateVertex(vertex, net) if i == keep else op for i, op in enumerate(moves)
+                     if i == keep or i not in at]
+            states = before[:at[0] + 1]
+            try:
+                for op in trial[at[0]:]:
+                    states.append(op.apply(states[-1]))
+            except OpError:
+                continue
+            moves, before = trial, states
+            break
+    return tuple(moves)
+
+
+def _move_order(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    return np.argsort(-np.linalg.norm(goal - start, axis=1), kind="stable")
 
 
 def _smoothing(mesh: PolyMesh) -> sp.csc_matrix:
@@ -679,6 +829,7 @@ def _ga_config(config: SurfaceConfig) -> GAConfig:
         stall_generations=config.stall_generations or None,
         local_search_every=config.polish_every,
         local_search_count=config.polish_niches,
+        survival=config.survival,
     )
 
 
@@ -773,13 +924,11 @@ def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, ex
 
 def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, tuple]]:
     """The accuracy/complexity front: ``(control vertices, distance, genome)`` of the evaluated genomes that
-    no other beats in both (fewer or as many vertices and a lower distance), by vertex count."""
-    out: list[tuple[int, float, tuple]] = []
-    for n in sorted(evaluated):
-        cost, genome = evaluated[n]
-        if math.isfinite(cost) and (not out or cost < out[-1][1]):
-            out.append((n, cost, genome))
-    return out
+    no other dominates in (control vertices, distance) (:func:`~gsr_cad.ga.pareto.non_dominated`, pymoo's
+    non-dominated sort when installed), by vertex count."""
+    entries = [(n, float(evaluated[n][0]), evaluated[n][1]) for n in sorted(evaluated)]
+    keep = non_dominated(np.array([[n, cost] for n, cost, _ in entries], dtype=np.float64).reshape(-1, 2))
+    return [entries[i] for i in keep]
 
 
 def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
@@ -927,6 +1076,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
         if growth is not None:
             final, pareto = growth.genome, growth.front
+    if final and not hurry():
+        final = problem.pruned(problem.merged(final))
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
@@ -952,7 +1103,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "ops": _letters(final),
         **genus_metrics(control, *target_genus(tgt)),
         "template_placement": placement.to_json(),
-        "front": [{"vertices": n, "ops": _letters(g), "distance": c} for n, c, g in pareto],
+        "front": [{"vertices": n, "ops": _letters(g), "distance": c, "n_ops": len(g)} for n, c, g in pareto],
+        "front_sort": "pymoo non-dominated sorting" if has_pymoo() else "non-dominated sorting (numpy)",
     })
     if config.max_distance is not None:
         # the front's measure: the search's symmetric distance (the reported fit_to_data also holds a mesh

@@ -1,0 +1,60 @@
+"""Designer-short histories: the moves to a fitted cage are about one per control vertex, ordered so the
+intermediate states stay sound rather than staged, and replay exactly."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
+from gsr_cad.ops.mesh import TranslateVertex, moves_to
+from gsr_cad.reconstruct.config import SurfaceConfig
+from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.refine import refine
+from gsr_cad.reconstruct.surface import SurfaceProblem, box_template
+
+
+def _cube() -> PolyMesh:
+    v = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return PolyMesh.from_faces(v, faces)
+
+
+def _fine_cube() -> PolyMesh:
+    cube = _cube()
+    return get_catmull_clark(cube, 2, "all").refine(cube.vertices)  # 98 control vertices
+
+
+@pytest.mark.parametrize("amount, per_vertex", [(1.0, 1.1), (1.5, 1.1)])
+def test_moves_that_fold_in_index_order_are_one_per_vertex_and_replay_exactly(amount, per_vertex):
+    mesh = _fine_cube()
+    v = mesh.vertices
+    goal = v + amount * np.c_[np.sin(2.0 * v[:, 2]), np.zeros(len(v)), np.zeros(len(v))]  # a strong shear
+    problem = SurfaceProblem(surface_target(limit_mesh(mesh, 1), "cube"), SurfaceConfig(), mesh)
+    moving = int(np.sum(np.linalg.norm(goal - v, axis=1) > 1e-12 * problem.diag))
+    assert moves_to(mesh, goal, 1e-12 * problem.diag)[2] > 0  # index order alone folds a face
+    moves, reached, refused = problem._moves(mesh, goal)
+    assert refused == 0 and all(isinstance(op, TranslateVertex) for op in moves)
+    assert len(moves) <= per_vertex * moving
+    replayed = problem.control_mesh(tuple(moves))
+    assert np.abs(replayed.vertices - goal).max() <= 1e-12 * problem.diag
+    assert np.array_equal(replayed.vertices, reached.vertices)
+
+
+def test_a_refined_history_has_about_one_move_per_control_vertex():
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    rng = np.random.default_rng(1)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
+    problem.max_faces = 400
+    genome, levels = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
+    control = problem.control_mesh(genome)
+    assert control.n_vertices > 8 and len(levels) >= 2
+    moves = sum(isinstance(op, TranslateVertex) for op in genome)
+    assert moves <= 1.2 * control.n_vertices
+    assert np.abs(control.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
