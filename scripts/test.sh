@@ -8,6 +8,6 @@ if ! command -v chromium >/dev/null && [ "$(id -u)" = 0 ] && command -v apt-get 
   { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; } >/tmp/gsr-chromium.log 2>&1 \
     || echo "Chromium: apt-get failed (see /tmp/gsr-chromium.log); the report.html browser tests will skip"
 fi
-bash scripts/venv.sh "dev,cad,dask"
+bash scripts/venv.sh "dev,cad,dask,moo"
 bash scripts/cadquery-venv.sh || echo "CadQuery venv: install failed; the CadQuery round-trip tests will skip"
 exec .venv/bin/python -m pytest -n "${GSR_TEST_WORKERS:-2}" --dist loadgroup "$@"
