@@ -163,3 +163,44 @@ def test_feature_genomes_crease_the_caps_and_keep_gaining():
     assert all(b < 0.98 * a for a, b in zip(costs, costs[1:]))
     assert costs[-1] < 0.05 * costs[0]
     assert feature_genomes(template, problem.proposals, lambda g: (problem.cost(g), None), "V") == []
+
+
+def _hole_clearance(template: PolyMesh, centre: np.ndarray, axis: np.ndarray) -> float:
+    """Distance from the line ``centre + t axis`` to the nearest limit vertex of ``template`` (level 2)."""
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices - centre
+    return float(np.linalg.norm(limit - np.outer(limit @ axis, axis), axis=1).min())
+
+
+@pytest.mark.parametrize("angles", [(0.0, 0.0, 0.0), (0.4, -0.7, 1.1)])
+def test_template_holes_follow_a_turned_and_moved_target(angles):
+    """The hole of a thin-walled ring is sized to its bore (its limit rim near the inner wall, far from the
+    small default hole) and follows the ring wherever it is turned and moved."""
+    turn = trimesh.transformations.euler_matrix(*angles)
+    turn[:3, 3] = [3.0, -2.0, 5.0]
+    ring = trimesh.creation.annulus(0.85, 1.0, 0.4, sections=64)
+    ring.apply_transform(turn)
+    target = SurfaceTarget(ring.vertices, ring.faces)
+    template = fitted_template(target, 1)
+    assert genus_metrics(template, 1, "euler")["result_genus"] == 1
+    clearance = _hole_clearance(template, turn[:3, 3], turn[:3, 2])
+    assert 0.7 < clearance < 0.9  # the bore's radius is 0.85; the unplaced template's hole is half the box
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices - turn[:3, 3]
+    assert np.abs(limit @ turn[:3, 2]).max() < 0.25  # flat along the turned axis (height 0.4)
+
+
+def test_template_holes_sit_in_the_target_windows():
+    """Two windows of unequal size at unequal spacing: each template hole lies on its window's centre line."""
+    mask = np.ones((10, 5), dtype=bool)
+    mask[1:3, 1:4] = False  # a wide window near one end
+    mask[7, 2] = False  # a small one further along
+    # unit cells side by side (their shared walls lie inside the solid the voxels see)
+    slab = trimesh.util.concatenate([trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.
+                                     translation_matrix([i + 0.5, j + 0.5, 0.0]))
+                                     for i in range(10) for j in range(5) if mask[i, j]])
+    target = SurfaceTarget(slab.vertices, slab.faces)
+    template = fitted_template(target, 2)
+    up = np.array([0.0, 0.0, 1.0])
+    wide = _hole_clearance(template, np.array([2.0, 2.5, 0.0]), up)
+    small = _hole_clearance(template, np.array([7.5, 2.5, 0.0]), up)
+    assert 0.8 < wide < 1.2 and 0.35 < small < 0.65  # half-widths 1 and 0.5 (equal strips: 0.9 and 1.1)
+    assert _hole_clearance(template, np.array([5.0, 2.5, 0.0]), up) < 0.1  # solid between the windows

@@ -34,11 +34,13 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import ConfigError, GsrError
 from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh, unit_cube
 from ..geometry.subdivision import get_catmull_clark
+from ..geometry.surface_distance import area_samples
 from ..ops.mesh import Crease, CreaseRim, EdgeLoop, edge_loop, hole, inset
 from ..ops.mesh_conn import mesh_view
 from ..ops.mesh_kernel import distinct_rings
 from .features import CreaseProposals
 from .inputs import SurfaceTarget
+from .placement import oriented_box
 
 MAX_TEMPLATE_GENUS = 8
 VOXEL_RESOLUTION = 48
@@ -182,33 +184,139 @@ def genus_metrics(control: PolyMesh, genus: int, method: str) -> dict[str, Any]:
 
 # --- placing a template ----------------------------------------------------------------------------------------
 
-def hole_axis(target: SurfaceTarget) -> int:
-    """The axis the target's through-holes run along: the one with the most empty columns of its voxel solid
-    that the solid surrounds (its projection covers them on every side); the thinnest axis when none is."""
-    solid = voxel_solid(target.points, target.faces)
-    best, axis = 0, int(np.argmin(np.ptp(target.points, axis=0)))
+def _hole_columns(solid: np.ndarray) -> tuple[int, np.ndarray]:
+    """The axis of ``solid`` with the most empty columns that its projection surrounds, and that boolean
+    projection of the enclosed empty columns (the through-holes seen along it); the axis is -1 when none is."""
+    best, axis, holes = 0, -1, np.zeros((1, 1), dtype=bool)
     for k in range(3):
         shadow = solid.any(axis=k)
         empty = ndimage.binary_fill_holes(shadow) & ~shadow
         if empty.sum() > best:
-            best, axis = int(empty.sum()), k
-    return axis
+            best, axis, holes = int(empty.sum()), k, empty
+    return axis, holes
+
+
+def hole_axis(target: SurfaceTarget) -> int:
+    """The axis the target's through-holes run along: the one with the most empty columns of its voxel solid
+    that the solid surrounds (its projection covers them on every side); the thinnest axis when none is."""
+    axis, _ = _hole_columns(voxel_solid(target.points, target.faces))
+    return axis if axis >= 0 else int(np.argmin(np.ptp(target.points, axis=0)))
+
+
+HOLE_REACH = 1.04
+"""A template hole's control half-width over the target hole's: a 4-sided control hole's limit rim runs about
+4 % inside it at its sides (cubic B-spline of a square: 23/24 of the half-width)."""
+
+
+def target_holes(points: np.ndarray, faces: np.ndarray | None, axis: int, plane: tuple[int, int]
+                 ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The through-holes of a target along ``axis`` (its points in the frame they are given in): one ``(centre,
+    half-widths)`` per hole, both along the two ``plane`` axes. Holes are the enclosed empty columns of its voxel
+    solid seen along ``axis`` (labelled); each one's walls are then found on the points themselves: the nearest
+    points beyond its centre along each ``plane`` axis, within a cell of the line through it."""
+    points = np.asarray(points, dtype=np.float64)
+    solid = voxel_solid(points, faces)
+    shadow = solid.any(axis=axis)
+    empty = ndimage.binary_fill_holes(shadow) & ~shadow
+    labels, count = ndimage.label(empty)
+    samples = _surface_samples(points, faces)
+    lo = samples.min(axis=0)
+    h = float(np.ptp(samples, axis=0).max()) / VOXEL_RESOLUTION or 1.0
+    cell_axes = [k for k in range(3) if k != axis]  # the projection's axes, in order
+    flat = samples[:, cell_axes]
+    out = []
+    for index in range(1, count + 1):
+        cells = np.argwhere(labels == index)
+        centre = lo[cell_axes] + (cells.mean(axis=0) - 1 + 0.5) * h
+        half = np.empty(2)
+        for j in range(2):
+            other = 1 - j
+            band = np.abs(flat[:, other] - centre[other]) <= h
+            offsets = flat[band, j] - centre[j]
+            above, below = offsets[offsets > 0], -offsets[offsets < 0]
+            if not above.size or not below.size:
+                break
+            a, b = float(above.min()), float(below.min())
+            centre[j] += (a - b) / 2.0
+            half[j] = (a + b) / 2.0
+        else:
+            order = [cell_axes.index(k) for k in plane]
+            out.append((centre[order], half[order]))
+    return out
+
+
+def _frame(target: SurfaceTarget) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and axes (columns) of the box a template is placed on
+    (:func:`~gsr_cad.reconstruct.placement.oriented_box`: the principal axes when that box is clearly smaller)."""
+    samples = None
+    if target.faces is not None and len(target.faces):
+        samples = area_samples(target.points, target.faces, 4000, _SEED)
+    centre, axes, _, _ = oriented_box(target.points, samples)
+    return centre, axes
+
+
+def _placed_holes(mesh: PolyMesh, unit: np.ndarray, genus: int, holes: list[tuple[np.ndarray, np.ndarray]],
+                  x: int, y: int) -> PolyMesh:
+    """``mesh`` (the placed :func:`genus_template`, ``unit`` its vertices as built) with each strip's hole rim
+    moved onto the target's hole (``holes``: centre and half-widths along ``x``, ``y``, in the row's order) and the
+    cuts between strips halfway between neighbouring holes."""
+    v = mesh.vertices.copy()
+    ux, uy = unit[:, 0] + genus / 2.0, unit[:, 1]
+    strip = np.clip(np.floor(ux).astype(int), 0, genus - 1)
+    rim = ~np.isclose(ux, np.round(ux))  # the insets' vertices
+    outer_x = (v[:, x].min(), v[:, x].max())
+    outer_y = (v[:, y].min(), v[:, y].max())
+    centres = np.array([c for c, _ in holes])
+    halves = np.array([w for _, w in holes]) * HOLE_REACH
+    cuts = np.concatenate([[outer_x[0]], (centres[1:, 0] - halves[1:, 0] + centres[:-1, 0] + halves[:-1, 0]) / 2.0,
+                           [outer_x[1]]])
+    inner_cut = ~rim & (np.round(ux) > 0) & (np.round(ux) < genus)
+    v[inner_cut, x] = cuts[np.round(ux[inner_cut]).astype(int)]
+    for i in range(genus):
+        on = rim & (strip == i)
+        side_x = np.sign(ux[on] - (i + 0.5))
+        side_y = np.sign(uy[on])
+        margin_x = 0.1 * (cuts[i + 1] - cuts[i])
+        margin_y = 0.05 * (outer_y[1] - outer_y[0])
+        v[on, x] = np.clip(centres[i, 0] + side_x * halves[i, 0], cuts[i] + margin_x, cuts[i + 1] - margin_x)
+        v[on, y] = np.clip(centres[i, 1] + side_y * halves[i, 1], outer_y[0] + margin_y, outer_y[1] - margin_y)
+    return mesh.with_vertices(v)
 
 
 def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
-    """:func:`genus_template` turned so that its holes follow :func:`hole_axis` and its row the longest other
-    axis, scaled and moved so that its level-2 limit surface spans the target's bounding box."""
-    mesh = genus_template(genus)
-    lo, hi = target.bbox
+    """:func:`genus_template` on the target's box (:func:`_frame`: axis-aligned, or its principal axes when that
+    box is clearly smaller), turned so that its holes follow the target's hole axis in that frame and its row the
+    longest other axis, scaled and moved so that its level-2 limit surface spans the box. When the target shows
+    as many through-holes along that axis as ``genus`` (:func:`target_holes`), each template hole is then moved
+    and sized onto one of them (in the row's order) and the strips cut between them, and the whole rescaled to
+    the box again."""
+    unit_mesh = genus_template(genus)
+    centre, axes = _frame(target)
+    local = (np.asarray(target.points, dtype=np.float64) - centre) @ axes
+    lo, hi = local.min(axis=0), local.max(axis=0)
     extent = hi - lo
-    z = hole_axis(target) if genus else int(np.argmin(extent))
+    solid = voxel_solid(local, target.faces) if genus else None
+    axis = _hole_columns(solid)[0] if genus else -1
+    z = axis if axis >= 0 else int(np.argmin(extent))
     others = [k for k in range(3) if k != z]
     x = max(others, key=lambda k: extent[k])
     y = next(k for k in others if k != x)
-    v = np.empty_like(mesh.vertices)
-    v[:, x], v[:, y], v[:, z] = mesh.vertices[:, 0], mesh.vertices[:, 1], mesh.vertices[:, 2]
+    v = np.empty_like(unit_mesh.vertices)
+    v[:, x], v[:, y], v[:, z] = unit_mesh.vertices[:, 0], unit_mesh.vertices[:, 1], unit_mesh.vertices[:, 2]
+    mesh = _spanning(unit_mesh.with_vertices(v), lo, hi)
+    if genus:
+        holes = sorted(target_holes(local, target.faces, z, (x, y)), key=lambda hole: hole[0][0])
+        if len(holes) == genus:
+            mesh = _spanning(_placed_holes(mesh, unit_mesh.vertices, genus, holes, x, y), lo, hi)
+    return mesh.with_vertices(mesh.vertices @ axes.T + centre)
+
+
+def _spanning(mesh: PolyMesh, lo: np.ndarray, hi: np.ndarray) -> PolyMesh:
+    """``mesh`` scaled per axis and moved so that its level-2 limit surface spans the box ``lo``-``hi``."""
+    v = mesh.vertices
     limit = get_catmull_clark(mesh, 2).limit_matrix @ v
     llo, lhi = limit.min(axis=0), limit.max(axis=0)
+    extent = hi - lo
     size = np.maximum(extent, 1e-6 * float(extent.max()))
     factor = size / np.maximum(lhi - llo, 1e-12)
     return mesh.with_vertices((v - (llo + lhi) / 2.0) * factor + (lo + hi) / 2.0)
