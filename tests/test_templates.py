@@ -204,3 +204,25 @@ def test_template_holes_sit_in_the_target_windows():
     small = _hole_clearance(template, np.array([7.5, 2.5, 0.0]), up)
     assert 0.8 < wide < 1.2 and 0.35 < small < 0.65  # half-widths 1 and 0.5 (equal strips: 0.9 and 1.1)
     assert _hole_clearance(template, np.array([5.0, 2.5, 0.0]), up) < 0.1  # solid between the windows
+
+
+def test_a_block_bored_along_three_axes_gets_the_window_box():
+    """A box frame (3 x 3 x 3 cells, the centre column along each axis bored out: genus 5; stretched so that its
+    principal axes are its own), turned: the template is the hollow box with six windows, each window on a
+    bore's centre line (a row of holes would block two of them), its limit spanning the target."""
+    stretch = np.diag([1.6, 1.0, 0.7, 1.0])
+    turn = trimesh.transformations.euler_matrix(0.3, 0.5, -0.2)
+    cells = [trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.translation_matrix(
+        [i - 1.0, j - 1.0, k - 1.0])) for i in range(3) for j in range(3) for k in range(3)
+        if (i == 1) + (j == 1) + (k == 1) <= 1]
+    frame = trimesh.util.concatenate(cells)
+    frame.apply_transform(turn @ stretch)
+    target = SurfaceTarget(frame.vertices, frame.faces)
+    template = fitted_template(target, 5)
+    assert template.n_vertices == 64 and genus_metrics(template, 5, "euler")["result_genus"] == 5
+    for k, half in enumerate((0.35, 0.35, 0.5)):  # the bores' narrower half-widths
+        assert 0.7 * half < _hole_clearance(template, np.zeros(3), turn[:3, k]) < 1.3 * half
+    # (the principal axes of the target's area samples are within a degree or two of the turned ones)
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices @ turn[:3, :3]
+    np.testing.assert_allclose(np.abs([limit.min(axis=0), limit.max(axis=0)]),
+                               np.tile(1.5 * np.diag(stretch)[:3], (2, 1)), rtol=0.08)

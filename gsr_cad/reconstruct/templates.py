@@ -2,10 +2,13 @@
 
 :func:`genus_template` builds, with the surface ops themselves, a box with ``n`` through-holes in a row:
 ``n - 1`` edge loops cut the box into ``n`` equal strips along x, every top (+z) and bottom (-z) face is
-inset, and each bottom face is bridged to the top face above it (the hole op H). :func:`fitted_template`
-turns it so that the holes run along the axis the target's own holes run along (the axis with the most empty
-columns through its voxelised solid, else its thinnest one), the row along the longest other axis, and
-scales it so that its limit surface spans the target's bounding box.
+inset, and each bottom face is bridged to the top face above it (the hole op H). :func:`fitted_template` places it on the target's box (axis-aligned, or on its principal axes when that box is
+clearly smaller): the holes along the axis the target's own holes run along (the axis with the most empty
+columns through its voxelised solid, else its thinnest one), the row along the longest other axis, each
+template hole moved and sized onto one of the target's through-holes when it shows as many (:func:`target_holes`),
+scaled so that its limit surface spans the box. A genus-5 target bored along all three axes (one central
+through-hole seen along each: a block with crossing bores, a cube minus a sphere) gets :func:`window_box`
+instead, a hollow box with a window in each wall sized to the bores.
 
 :func:`target_genus` estimates the genus: exactly from the Euler characteristic ``V - E + F`` of a closed
 mesh target (coincident vertices welded first; ``genus = components - chi / 2``); for a cloud or an open
@@ -75,6 +78,47 @@ def genus_template(genus: int) -> PolyMesh:
     for f, g in pairs:
         mesh = hole(mesh, f, g)
     return mesh
+
+
+def window_box(outer: np.ndarray, inner: np.ndarray, windows: np.ndarray) -> PolyMesh:
+    """The genus-5 quad mesh of a hollow box with a window in each of its six walls (a block bored along all
+    three axes, a cube minus a sphere): the outer box ``[-outer, outer]``, the cavity ``[-inner, inner]``
+    (per axis, ``inner < outer``), and the window through the walls across axis ``k`` spanning ``windows[k]``
+    (the half-widths along the two other axes, in order, each below ``inner`` there); 64 vertices, 72 quads."""
+    outer, inner, windows = (np.asarray(a, dtype=np.float64) for a in (outer, inner, windows))
+    vid: dict[tuple, int] = {}
+    points: list[np.ndarray] = []
+
+    def v(key: tuple, point: np.ndarray) -> int:
+        if key not in vid:
+            vid[key] = len(points)
+            points.append(point)
+        return vid[key]
+
+    square = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    faces = []
+    for k in range(3):
+        u, w = (k + 1) % 3, (k + 2) % 3  # e_u x e_w = e_k
+        for sign in (1, -1):
+            order = square if sign > 0 else tuple((b, a) for a, b in square)  # counter-clockwise from outside
+            rings = []
+            for layer, half in (("outer", outer), ("inner", inner)):
+                corners, window = [], []
+                for a, b in order:
+                    c = np.empty(3)
+                    c[k], c[u], c[w] = sign * half[k], a * half[u], b * half[w]
+                    key = tuple(int(np.sign(c[j])) for j in range(3))
+                    corners.append(v((layer, key), c))
+                    p = c.copy()
+                    p[u], p[w] = a * windows[k][0], b * windows[k][1]
+                    window.append(v((layer, k, sign, a, b), p))
+                rings.append((corners, window))
+            (c_out, w_out), (c_in, w_in) = rings
+            for i in range(4):
+                j = (i + 1) % 4
+                faces += [(c_out[i], c_out[j], w_out[j], w_out[i]), (w_in[i], w_in[j], c_in[j], c_in[i]),
+                          (w_out[i], w_out[j], w_in[j], w_in[i])]
+    return PolyMesh.from_faces(np.array(points), faces)
 
 
 # --- genus of a target ---------------------------------------------------------------------------------------
@@ -304,11 +348,40 @@ def fitted_template(target: SurfaceTarget, genus: int) -> PolyMesh:
     v = np.empty_like(unit_mesh.vertices)
     v[:, x], v[:, y], v[:, z] = unit_mesh.vertices[:, 0], unit_mesh.vertices[:, 1], unit_mesh.vertices[:, 2]
     mesh = _spanning(unit_mesh.with_vertices(v), lo, hi)
-    if genus:
+    bored = _bored_box(local, target.faces, lo, hi) if genus == 5 else None
+    if bored is not None:
+        mesh = bored
+    elif genus:
         holes = sorted(target_holes(local, target.faces, z, (x, y)), key=lambda hole: hole[0][0])
         if len(holes) == genus:
             mesh = _spanning(_placed_holes(mesh, unit_mesh.vertices, genus, holes, x, y), lo, hi)
     return mesh.with_vertices(mesh.vertices @ axes.T + centre)
+
+
+def _bored_box(local: np.ndarray, faces: np.ndarray | None, lo: np.ndarray, hi: np.ndarray) -> PolyMesh | None:
+    """The :func:`window_box` of a target (points ``local`` in its box frame, box ``lo``-``hi``) bored along all
+    three axes, one through-hole seen along each (:func:`target_holes`), else None: windows sized to the holes
+    (``HOLE_REACH``), the cavity a quarter wider than the widest window across it, the outer walls spanning the
+    box (the limit surface, as :func:`_spanning`)."""
+    windows = np.empty((3, 2))
+    for k in range(3):
+        holes = target_holes(local, faces, k, ((k + 1) % 3, (k + 2) % 3))
+        if len(holes) != 1 or np.any(np.abs(holes[0][0]) > 0.25 * (hi - lo)[[(k + 1) % 3, (k + 2) % 3]]):
+            return None  # not one central hole along this axis
+        windows[k] = holes[0][1] * HOLE_REACH
+    outer = (hi - lo) / 2.0
+    across = np.zeros(3)  # the widest window half-width along each axis
+    for k in range(3):
+        across[(k + 1) % 3] = max(across[(k + 1) % 3], windows[k, 0])
+        across[(k + 2) % 3] = max(across[(k + 2) % 3], windows[k, 1])
+    inner = np.minimum(1.25 * across, 0.8 * outer)
+    for k in range(3):
+        windows[k] = np.minimum(windows[k], 0.85 * inner[[(k + 1) % 3, (k + 2) % 3]])
+    mesh = window_box(outer, inner, windows)
+    for _ in range(2):  # the outer walls spanning the box, the cavity and windows kept
+        spanned = _spanning(mesh, lo - (lo + hi) / 2.0, hi - (lo + hi) / 2.0)
+        mesh = window_box(np.ptp(spanned.vertices, axis=0) / 2.0, inner, windows)
+    return _spanning(mesh, lo, hi)
 
 
 def _spanning(mesh: PolyMesh, lo: np.ndarray, hi: np.ndarray) -> PolyMesh:
