@@ -226,3 +226,32 @@ def test_a_block_bored_along_three_axes_gets_the_window_box():
     limit = get_catmull_clark(template, 2).limit(template.vertices).vertices @ turn[:3, :3]
     np.testing.assert_allclose(np.abs([limit.min(axis=0), limit.max(axis=0)]),
                                np.tile(1.5 * np.diag(stretch)[:3], (2, 1)), rtol=0.08)
+
+
+def test_the_summary_and_report_lines_say_when_the_genus_differs():
+    from gsr_cad.cli.summary import summary_lines, warning_lines
+    from gsr_cad.reconstruct.result import Result
+
+    def result(control: PolyMesh, genus: int) -> Result:
+        metrics = {"mean_distance": 1e-3, "max_distance": 2e-3, **genus_metrics(control, genus, "euler")}
+        return Result(kind="surface", config={"target": {"name": "t", "diagonal": 1.0}}, seed=0, genome=(),
+                      metrics=metrics, history=[], control_mesh=control)
+
+    same = result(genus_template(1), 1)
+    assert "  genus: control mesh 1, target 1 (euler)" in summary_lines(same)
+    assert warning_lines(same) == []
+    missing = result(genus_template(0), 2)
+    assert "  genus: control mesh 0, target 2 (euler) - DIFFERS: through-holes missing or extra" in summary_lines(
+        missing)
+    assert warning_lines(missing) == ["warning: the control mesh has genus 0 but the target has genus 2 (euler): "
+                                      "through-holes are missing or extra"]
+
+
+def test_a_sparse_cloud_keeps_its_genus():
+    """Cells no finer than a cloud's spacing: 250 points on a box are genus 0 (at 48 cells along the box the
+    gaps between them were counted as holes), 400 on a torus genus 1."""
+    rng = np.random.default_rng(3)
+    box, _ = trimesh.sample.sample_surface(trimesh.creation.box(extents=(2.0, 1.0, 1.0)), 250, seed=3)
+    assert target_genus(SurfaceTarget(np.asarray(box), None)) == (0, "voxels")
+    torus, _ = trimesh.sample.sample_surface(trimesh.creation.torus(1.0, 0.35), 400, seed=int(rng.integers(100)))
+    assert target_genus(SurfaceTarget(np.asarray(torus), None)) == (1, "voxels")

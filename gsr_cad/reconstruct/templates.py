@@ -15,7 +15,7 @@ mesh target (coincident vertices welded first; ``genus = components - chi / 2``)
 mesh from a voxel solid: the target's points (a mesh's triangles sampled) mark the cells of a grid, the marked
 shell is closed by one dilation and its cavities filled, and ``genus = components - chi`` of that cubical
 complex. The voxel estimate closes holes narrower than about three cells (``resolution`` cells along the
-longest axis), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
+longest axis, a cloud's cells no finer than its points' spacing), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
 in :func:`genus_metrics`.
 
 :func:`feature_genomes` builds starts for the search from the target's feature lines (a greedy sequence of rim
@@ -33,6 +33,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from ..errors import ConfigError, GsrError
 from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh, unit_cube
@@ -166,13 +167,24 @@ def _surface_samples(points: np.ndarray, faces: np.ndarray | None) -> np.ndarray
     return np.concatenate([points, a[pick] + u[:, None] * (b - a)[pick] + w[:, None] * (c - a)[pick]])
 
 
+def _cell(samples: np.ndarray, faces: np.ndarray | None, resolution: int) -> float:
+    """The voxel side: ``resolution`` cells along the longest axis, but for a cloud no finer than its points'
+    spacing (90th percentile of the nearest-neighbour distances), so that one dilation closes the gaps between
+    them (a sparse cloud would otherwise count them as holes)."""
+    h = float(np.ptp(samples, axis=0).max()) / resolution or 1.0
+    if faces is None and len(samples) > 1:
+        gap = cKDTree(samples).query(samples, k=2)[0][:, 1]
+        h = max(h, float(np.percentile(gap, 90)))
+    return h
+
+
 def voxel_solid(points: np.ndarray, faces: np.ndarray | None = None,
                 resolution: int = VOXEL_RESOLUTION) -> np.ndarray:
     """Boolean grid (one cell of padding) of the solid the target bounds: cells holding its points, closed by
     one dilation, cavities filled."""
     samples = _surface_samples(np.asarray(points, dtype=np.float64), faces)
     lo, hi = samples.min(axis=0), samples.max(axis=0)
-    h = float((hi - lo).max()) / resolution or 1.0
+    h = _cell(samples, faces, resolution)
     shape = np.ceil((hi - lo) / h).astype(int) + 3
     cells = np.floor((samples - lo) / h).astype(int) + 1
     grid = np.zeros(shape, dtype=bool)
@@ -265,7 +277,7 @@ def target_holes(points: np.ndarray, faces: np.ndarray | None, axis: int, plane:
     labels, count = ndimage.label(empty)
     samples = _surface_samples(points, faces)
     lo = samples.min(axis=0)
-    h = float(np.ptp(samples, axis=0).max()) / VOXEL_RESOLUTION or 1.0
+    h = _cell(samples, faces, VOXEL_RESOLUTION)
     cell_axes = [k for k in range(3) if k != axis]  # the projection's axes, in order
     flat = samples[:, cell_axes]
     out = []
