@@ -1,16 +1,17 @@
 """Creases and holes benchmark (issue 13): targets with sharp edges and through-holes, reconstructed with the
 crease ops (C, R) and the genus-seeded template, each within a time budget.
 
-Targets (built here, no download, each split to short triangles, the same surface: :func:`_split`):
-``cylinder`` (trimesh's ``creation.cylinder``: flat caps, sharp rims; 64 sections, as the default 32 put the
-facets 1.4e-3 of the diagonal inside the true cylinder, more than the 1e-3 asked of the fit),
-``nut`` (a hexagonal prism with a round hole), ``torus`` (``creation.torus``), ``ring`` (a thin-walled
-``creation.annulus``) and ``frame`` (a slab with three square windows); and the public meshes of genus >= 1
-shipped in installed packages (:data:`PUBLIC`, whichever are installed, OpenSCAD parts rendered by ``openscad``):
-pymeshlab's ``cow`` (genus 1), OpenSCAD's ``logo`` (a sphere bored along three axes) and ``example004`` (a
-cube minus a sphere), both genus 5 (single components; the other examples of genus >= 1 are several parts, or
-genus 16 and 729). Columns: the target's genus and the control mesh's (``!`` where they differ), and the four two-sided distances over the bounding-box diagonal (target points to the
-limit mesh: mean and max; limit vertices to the target: mean and max), the op letters and the seconds.
+Targets (built here, no download, each split to short triangles, the same surface: :func:`_split`): ``cylinder``
+(trimesh's ``creation.cylinder``: flat caps, sharp rims; 64 sections, as the default 32 put the facets 1.4e-3 of
+the diagonal inside the true cylinder, more than the 1e-3 asked of the fit), ``nut`` (a hexagonal prism with a
+round hole), ``torus`` (``creation.torus``), ``ring`` (a thin-walled ``creation.annulus``) and ``frame`` (a slab
+with three square windows); and the public meshes of genus >= 1 shipped in installed packages (:data:`PUBLIC`,
+whichever are installed, OpenSCAD parts rendered by ``openscad``): pymeshlab's ``cow`` (genus 1), OpenSCAD's
+``logo`` (a sphere bored along three axes) and ``example004`` (a cube minus a sphere), both genus 5 (single
+components; the other examples of genus >= 1 are several parts, or genus 16 and 729). Columns: the target's genus
+and the control mesh's (``!`` where they differ), and the four two-sided distances over the bounding-box diagonal
+(target points to the limit mesh: mean and max; limit vertices to the target: mean and max), the op letters and the
+seconds.
 
     python benchmarks/genus_creases.py                       # everything, 300 s each -> results/genus_creases.md
     python benchmarks/genus_creases.py --targets cylinder --seconds 60
@@ -30,6 +31,7 @@ import numpy as np
 
 from gsr_cad.atomic import write_text
 from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.plots import run_length
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
 from gsr_cad.reconstruct.surface import reconstruct_surface
 
@@ -164,7 +166,7 @@ def run(name: str, target: PolyMesh | SurfaceTarget, seconds: float, seed: int) 
     return {"name": name, "target_genus": m["target_genus"], "result_genus": m["result_genus"],
             "to_fit_mean": m["mean_distance"], "to_fit_max": m["max_distance"],
             "to_target_mean": m["mean_distance_to_target"], "to_target_max": m["max_distance_to_target"],
-            "ops": m["ops"], "seconds": time.perf_counter() - started}
+            "ops": run_length(m["ops"]) or "-", "seconds": time.perf_counter() - started}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,22 +1,22 @@
 """Genus-``n`` templates and the genus of a target.
 
-:func:`genus_template` builds, with the surface ops themselves, a box with ``n`` through-holes in a row:
-``n - 1`` edge loops cut the box into ``n`` equal strips along x, every top (+z) and bottom (-z) face is
-inset, and each bottom face is bridged to the top face above it (the hole op H). :func:`fitted_template` places it on the target's box (axis-aligned, or on its principal axes when that box is
-clearly smaller): the holes along the axis the target's own holes run along (the axis with the most empty
-columns through its voxelised solid, else its thinnest one), the row along the longest other axis, each
-template hole moved and sized onto one of the target's through-holes when it shows as many (:func:`target_holes`),
-scaled so that its limit surface spans the box. A genus-5 target bored along all three axes (one central
-through-hole seen along each: a block with crossing bores, a cube minus a sphere) gets :func:`window_box`
-instead, a hollow box with a window in each wall sized to the bores.
+:func:`genus_template` builds, with the surface ops themselves, a box with ``n`` through-holes in a row: ``n - 1``
+edge loops cut the box into ``n`` equal strips along x, every top (+z) and bottom (-z) face is inset, and each
+bottom face is bridged to the top face above it (the hole op H). :func:`fitted_template` places it on the target's
+box (axis-aligned, or on its principal axes when that box is clearly smaller): the holes along the axis the
+target's own holes run along (the axis with the most empty columns through its voxelised solid, else its thinnest
+one), the row along the longest other axis, each template hole moved and sized onto one of the target's
+through-holes when it shows as many (:func:`target_holes`), scaled so that its limit surface spans the box. A
+genus-5 target bored along all three axes (one central through-hole seen along each: a block with crossing bores, a
+cube minus a sphere) gets :func:`window_box` instead, a hollow box with a window in each wall sized to the bores.
 
-:func:`target_genus` estimates the genus: exactly from the Euler characteristic ``V - E + F`` of a closed
-mesh target (coincident vertices welded first; ``genus = components - chi / 2``); for a cloud or an open
-mesh from a voxel solid: the target's points (a mesh's triangles sampled) mark the cells of a grid, the marked
-shell is closed by one dilation and its cavities filled, and ``genus = components - chi`` of that cubical
-complex. The voxel estimate closes holes narrower than about three cells (``resolution`` cells along the
-longest axis, a cloud's cells no finer than its points' spacing), counts a gap in an open mesh wider than that as one more handle, and is marked ``"voxels"``
-in :func:`genus_metrics`.
+:func:`target_genus` estimates the genus: exactly from the Euler characteristic ``V - E + F`` of a closed mesh
+target (coincident vertices welded first; ``genus = components - chi / 2``); for a cloud or an open mesh from a
+voxel solid: the target's points (a mesh's triangles sampled) mark the cells of a grid, the marked shell is closed
+by one dilation and its cavities filled, and ``genus = components - chi`` of that cubical complex. The voxel
+estimate closes holes narrower than about three cells (``resolution`` cells along the longest axis, a cloud's cells
+no finer than its points' spacing), counts a gap in an open mesh wider than that as one more handle, and is marked
+``"voxels"`` in :func:`genus_metrics`.
 
 :func:`feature_genomes` builds starts for the search from the target's feature lines (a greedy sequence of rim
 creases, creases and edge loops, each kept when the search's own cost falls).
@@ -439,9 +439,9 @@ def feature_genomes(template: PolyMesh, proposals: CreaseProposals,
     proposed edge and on all of them at once, and an edge loop (L) across each distinct edge ring (the
     letters in ``kinds`` only), and keeps the ops whose genome ``score`` likes best while it gains
     (``GREEDY_GAIN``), for at most ``steps`` steps, ``evaluations`` scored candidates and ``seconds`` (None:
-    no time limit, the result then depends on the inputs alone). ``score(genome)`` is the search's cost and the control mesh after its
-    polish (None when the genome fails), on which the next step's edges are proposed. Returns the genomes
-    of the steps kept, longest first (empty when none gains)."""
+    no time limit, the result then depends on the inputs alone). ``score(genome)`` is the search's cost and the
+    control mesh after its polish (None when the genome fails), on which the next step's edges are proposed.
+    Returns the genomes of the steps kept, longest first (empty when none gains)."""
     started = time.perf_counter()
     deadline = math.inf if seconds is None else started + seconds
     genome: tuple = ()
