@@ -255,3 +255,21 @@ def test_a_sparse_cloud_keeps_its_genus():
     assert target_genus(SurfaceTarget(np.asarray(box), None)) == (0, "voxels")
     torus, _ = trimesh.sample.sample_surface(trimesh.creation.torus(1.0, 0.35), 400, seed=int(rng.integers(100)))
     assert target_genus(SurfaceTarget(np.asarray(torus), None)) == (1, "voxels")
+
+
+def test_windows_side_by_side_keep_the_even_row():
+    """Four windows in a 2 x 2 grid do not follow one another along a row: the even strips stand (a sound
+    genus-4 template spanning the target) rather than strips cut across each other."""
+    mask = np.ones((5, 5), dtype=bool)
+    mask[1::2, 1::2] = False
+    slab = trimesh.util.concatenate([trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.
+                                     translation_matrix([i + 0.5, j + 0.5, 0.0]))
+                                     for i in range(5) for j in range(5) if mask[i, j]])
+    target = SurfaceTarget(slab.vertices, slab.faces)
+    template = fitted_template(target, 4)
+    assert genus_metrics(template, 4, "euler")["result_genus"] == 4
+    even = genus_template(4).vertices
+    # the even row's hole rims (cut strips would put each hole at its own window, 6 distinct y instead of 4)
+    assert np.unique(np.round(template.vertices[:, 1], 9)).size == np.unique(even[:, 1]).size == 4
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices
+    np.testing.assert_allclose([limit.min(axis=0), limit.max(axis=0)], target.bbox, atol=1e-9)

@@ -315,7 +315,8 @@ def _placed_holes(mesh: PolyMesh, unit: np.ndarray, genus: int, holes: list[tupl
                   x: int, y: int) -> PolyMesh:
     """``mesh`` (the placed :func:`genus_template`, ``unit`` its vertices as built) with each strip's hole rim
     moved onto the target's hole (``holes``: centre and half-widths along ``x``, ``y``, in the row's order) and the
-    cuts between strips halfway between neighbouring holes."""
+    cuts between strips halfway between neighbouring holes; ``mesh`` itself when the holes do not follow one
+    another along ``x`` (side by side across the row)."""
     v = mesh.vertices.copy()
     ux, uy = unit[:, 0] + genus / 2.0, unit[:, 1]
     strip = np.clip(np.floor(ux).astype(int), 0, genus - 1)
@@ -326,6 +327,8 @@ def _placed_holes(mesh: PolyMesh, unit: np.ndarray, genus: int, holes: list[tupl
     halves = np.array([w for _, w in holes]) * HOLE_REACH
     cuts = np.concatenate([[outer_x[0]], (centres[1:, 0] - halves[1:, 0] + centres[:-1, 0] + halves[:-1, 0]) / 2.0,
                            [outer_x[1]]])
+    if np.any(centres[:, 0] - halves[:, 0] <= cuts[:-1]) or np.any(centres[:, 0] + halves[:, 0] >= cuts[1:]):
+        return mesh  # the holes overlap along the row (not one after another): the even strips stand
     inner_cut = ~rim & (np.round(ux) > 0) & (np.round(ux) < genus)
     v[inner_cut, x] = cuts[np.round(ux[inner_cut]).astype(int)]
     for i in range(genus):
