@@ -5,7 +5,9 @@ Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bo
 (56k faces), an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by
 ``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube), whichever are installed.
 pymeshlab's 10k-face bunny and cow and OpenSCAD's CSG, logo and GEB examples are left out: their genus
-(estimated by ``target_genus``) is not 0. No download at run time.
+(estimated by ``target_genus``) is not 0. Then issue 13's genus targets (``genus_creases.genus_targets``: built
+nut, torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their
+genus in the name cell. No download at run time.
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
@@ -33,6 +35,7 @@ from gsr_cad.reconstruct.surface import reconstruct_surface
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import environment, load_average  # noqa: E402
 from baseline_quadremesh import baseline  # noqa: E402
+from genus_creases import GENUS_OPTIONS, genus_targets  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "real_data.md"
 PYMESHLAB_MESHES = ("bone.ply", "bunny.obj", "airplane.obj")
@@ -76,13 +79,19 @@ def main(argv: list[str] | None = None) -> int:
              f"Search budget {args.max_seconds:g} s per target (`--max-seconds`), seed {args.seed}; baseline `-`: "
              "QuadriFlow gave no quad mesh near that vertex count.", "", header, "|" + "---|" * 11]
     with tempfile.TemporaryDirectory() as tmp:
-        for path in targets(Path(tmp)):
-            if args.only and path.name not in args.only:
+        # issue 13's genus targets (benchmarks/genus_creases.py) follow, with the genus template and creases;
+        # their name cell gives the genus (target / result, "!" where they differ)
+        runs = [(path.name, surface_target(path), {}) for path in targets(Path(tmp))]
+        runs += [(name, target, GENUS_OPTIONS) for name, target in genus_targets(Path(tmp)).items()]
+        for name, target, options in runs:
+            if args.only and name not in args.only:
                 continue
-            target = surface_target(path)
             start = time.perf_counter()
-            result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds)
+            result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds, **options)
             m = result.metrics
+            if options:
+                name += (f" (genus {m['target_genus']} / {m['result_genus']}"
+                         f"{'' if m['target_genus'] == m['result_genus'] else ' !'})")
             seconds = time.perf_counter() - start
             b = baseline(target, m["n_control_vertices"])
             bm = b.metrics
@@ -90,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"| {b.control.n_vertices} | {bm['data_to_fit_mean']:.2e} / {bm['data_to_fit_max']:.2e} "
                     f"| {bm['fit_to_data_mean']:.2e} / {bm['fit_to_data_max']:.2e} |")
             base += " " + ", ".join(f"{p['vertices']}: {p['distance']:.1e}" for p in m["front"]) + " |"
-            row = (f"| {path.name} | {len(target.faces)} | {m['n_control_vertices']} | {run_length(m['ops']) or '-'} "
+            row = (f"| {name} | {len(target.faces)} | {m['n_control_vertices']} | {run_length(m['ops']) or '-'} "
                    f"| {m['data_to_fit_mean']:.2e} / {m['data_to_fit_max']:.2e} "
                    f"| {m['fit_to_data_mean']:.2e} / {m['fit_to_data_max']:.2e} | {seconds:.0f} " + base)
             print(row, flush=True)

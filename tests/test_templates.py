@@ -163,3 +163,113 @@ def test_feature_genomes_crease_the_caps_and_keep_gaining():
     assert all(b < 0.98 * a for a, b in zip(costs, costs[1:]))
     assert costs[-1] < 0.05 * costs[0]
     assert feature_genomes(template, problem.proposals, lambda g: (problem.cost(g), None), "V") == []
+
+
+def _hole_clearance(template: PolyMesh, centre: np.ndarray, axis: np.ndarray) -> float:
+    """Distance from the line ``centre + t axis`` to the nearest limit vertex of ``template`` (level 2)."""
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices - centre
+    return float(np.linalg.norm(limit - np.outer(limit @ axis, axis), axis=1).min())
+
+
+@pytest.mark.parametrize("angles", [(0.0, 0.0, 0.0), (0.4, -0.7, 1.1)])
+def test_template_holes_follow_a_turned_and_moved_target(angles):
+    """The hole of a thin-walled ring is sized to its bore (its limit rim near the inner wall, far from the
+    small default hole) and follows the ring wherever it is turned and moved."""
+    turn = trimesh.transformations.euler_matrix(*angles)
+    turn[:3, 3] = [3.0, -2.0, 5.0]
+    ring = trimesh.creation.annulus(0.85, 1.0, 0.4, sections=64)
+    ring.apply_transform(turn)
+    target = SurfaceTarget(ring.vertices, ring.faces)
+    template = fitted_template(target, 1)
+    assert genus_metrics(template, 1, "euler")["result_genus"] == 1
+    clearance = _hole_clearance(template, turn[:3, 3], turn[:3, 2])
+    assert 0.7 < clearance < 0.9  # the bore's radius is 0.85; the unplaced template's hole is half the box
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices - turn[:3, 3]
+    assert np.abs(limit @ turn[:3, 2]).max() < 0.25  # flat along the turned axis (height 0.4)
+
+
+def test_template_holes_sit_in_the_target_windows():
+    """Two windows of unequal size at unequal spacing: each template hole lies on its window's centre line."""
+    mask = np.ones((10, 5), dtype=bool)
+    mask[1:3, 1:4] = False  # a wide window near one end
+    mask[7, 2] = False  # a small one further along
+    # unit cells side by side (their shared walls lie inside the solid the voxels see)
+    slab = trimesh.util.concatenate([trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.
+                                     translation_matrix([i + 0.5, j + 0.5, 0.0]))
+                                     for i in range(10) for j in range(5) if mask[i, j]])
+    target = SurfaceTarget(slab.vertices, slab.faces)
+    template = fitted_template(target, 2)
+    up = np.array([0.0, 0.0, 1.0])
+    wide = _hole_clearance(template, np.array([2.0, 2.5, 0.0]), up)
+    small = _hole_clearance(template, np.array([7.5, 2.5, 0.0]), up)
+    assert 0.8 < wide < 1.2 and 0.35 < small < 0.65  # half-widths 1 and 0.5 (equal strips: 0.9 and 1.1)
+    assert _hole_clearance(template, np.array([5.0, 2.5, 0.0]), up) < 0.1  # solid between the windows
+
+
+def test_a_block_bored_along_three_axes_gets_the_window_box():
+    """A box frame (3 x 3 x 3 cells, the centre column along each axis bored out: genus 5; stretched so that its
+    principal axes are its own), turned: the template is the hollow box with six windows, each window on a
+    bore's centre line (a row of holes would block two of them), its limit spanning the target."""
+    stretch = np.diag([1.6, 1.0, 0.7, 1.0])
+    turn = trimesh.transformations.euler_matrix(0.3, 0.5, -0.2)
+    cells = [trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.translation_matrix(
+        [i - 1.0, j - 1.0, k - 1.0])) for i in range(3) for j in range(3) for k in range(3)
+        if (i == 1) + (j == 1) + (k == 1) <= 1]
+    frame = trimesh.util.concatenate(cells)
+    frame.apply_transform(turn @ stretch)
+    target = SurfaceTarget(frame.vertices, frame.faces)
+    template = fitted_template(target, 5)
+    assert template.n_vertices == 64 and genus_metrics(template, 5, "euler")["result_genus"] == 5
+    for k, half in enumerate((0.35, 0.35, 0.5)):  # the bores' narrower half-widths
+        assert 0.7 * half < _hole_clearance(template, np.zeros(3), turn[:3, k]) < 1.3 * half
+    # (the principal axes of the target's area samples are within a degree or two of the turned ones)
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices @ turn[:3, :3]
+    np.testing.assert_allclose(np.abs([limit.min(axis=0), limit.max(axis=0)]),
+                               np.tile(1.5 * np.diag(stretch)[:3], (2, 1)), rtol=0.08)
+
+
+def test_the_summary_and_report_lines_say_when_the_genus_differs():
+    from gsr_cad.cli.summary import summary_lines, warning_lines
+    from gsr_cad.reconstruct.result import Result
+
+    def result(control: PolyMesh, genus: int) -> Result:
+        metrics = {"mean_distance": 1e-3, "max_distance": 2e-3, **genus_metrics(control, genus, "euler")}
+        return Result(kind="surface", config={"target": {"name": "t", "diagonal": 1.0}}, seed=0, genome=(),
+                      metrics=metrics, history=[], control_mesh=control)
+
+    same = result(genus_template(1), 1)
+    assert "  genus: control mesh 1, target 1 (euler)" in summary_lines(same)
+    assert warning_lines(same) == []
+    missing = result(genus_template(0), 2)
+    assert "  genus: control mesh 0, target 2 (euler) - DIFFERS: through-holes missing or extra" in summary_lines(
+        missing)
+    assert warning_lines(missing) == ["warning: the control mesh has genus 0 but the target has genus 2 (euler): "
+                                      "through-holes are missing or extra"]
+
+
+def test_a_sparse_cloud_keeps_its_genus():
+    """Cells no finer than a cloud's spacing: 250 points on a box are genus 0 (at 48 cells along the box the
+    gaps between them were counted as holes), 400 on a torus genus 1."""
+    rng = np.random.default_rng(3)
+    box, _ = trimesh.sample.sample_surface(trimesh.creation.box(extents=(2.0, 1.0, 1.0)), 250, seed=3)
+    assert target_genus(SurfaceTarget(np.asarray(box), None)) == (0, "voxels")
+    torus, _ = trimesh.sample.sample_surface(trimesh.creation.torus(1.0, 0.35), 400, seed=int(rng.integers(100)))
+    assert target_genus(SurfaceTarget(np.asarray(torus), None)) == (1, "voxels")
+
+
+def test_windows_side_by_side_keep_the_even_row():
+    """Four windows in a 2 x 2 grid do not follow one another along a row: the even strips stand (a sound
+    genus-4 template spanning the target) rather than strips cut across each other."""
+    mask = np.ones((5, 5), dtype=bool)
+    mask[1::2, 1::2] = False
+    slab = trimesh.util.concatenate([trimesh.creation.box(extents=(1, 1, 1), transform=trimesh.transformations.
+                                     translation_matrix([i + 0.5, j + 0.5, 0.0]))
+                                     for i in range(5) for j in range(5) if mask[i, j]])
+    target = SurfaceTarget(slab.vertices, slab.faces)
+    template = fitted_template(target, 4)
+    assert genus_metrics(template, 4, "euler")["result_genus"] == 4
+    even = genus_template(4).vertices
+    # the even row's hole rims (cut strips would put each hole at its own window, 6 distinct y instead of 4)
+    assert np.unique(np.round(template.vertices[:, 1], 9)).size == np.unique(even[:, 1]).size == 4
+    limit = get_catmull_clark(template, 2).limit(template.vertices).vertices
+    np.testing.assert_allclose([limit.min(axis=0), limit.max(axis=0)], target.bbox, atol=1e-9)

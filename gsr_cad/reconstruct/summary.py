@@ -122,7 +122,18 @@ def summary_lines(result: Result, out: Path | None = None) -> list[str]:
     if result.kind == "surface" and _real(mixed):
         lines.append(f"  the paper's mixed mean distance: {mixed:.3g} of the diagonal (a pairing measure, not a "
                      "deviation: see README)")
-    return lines
+    genus = genus_line(result.metrics)
+    return lines + ([genus] if genus else [])
+
+
+def genus_line(metrics: dict[str, Any]) -> str | None:
+    """``genus: control mesh R, target T (method)``, saying DIFFERS when they do; None without genus metrics."""
+    if "target_genus" not in metrics:
+        return None
+    got, want = metrics.get("result_genus"), metrics["target_genus"]
+    text = (f"  genus: control mesh {'- (open)' if got is None else got}, target {want} "
+            f"({metrics.get('target_genus_method', '?')})")
+    return text + (" - DIFFERS: through-holes missing or extra" if metrics.get("genus_warning") else "")
 
 
 def template_warning(template: Any, target: Any, source: str) -> str | None:
@@ -149,6 +160,8 @@ def warning_lines(result: Result) -> list[str]:
         worst = result.metrics.get("data_to_fit_max", result.metrics.get("max_distance"))
         got = f"max distance {format_length(worst, diag, unit)}" if _real(worst) else "the max distance"
         out.append(f"warning: tolerance missed: {got} > --max-distance {format_length(status[0], diag, unit)}")
+    if result.metrics.get("genus_warning"):
+        out.append(f"warning: {result.metrics['genus_warning']}")
     return out
 
 
