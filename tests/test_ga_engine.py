@@ -9,6 +9,7 @@ import dataclasses
 import math
 import pickle
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -261,6 +262,25 @@ def test_threshold_stall_and_time_limits():
 
 
 # ---------------------------------------------------------------- reproducibility, interrupt, checkpoint
+class Slow(Seq):
+    """Each cost takes 20 ms: a first population of 60 would take 1.2 s."""
+
+    def cost(self, genome):
+        time.sleep(0.02)
+        return super().cost(genome)
+
+
+def test_time_budget_ends_a_slow_first_population_and_keeps_its_best():
+    problem = Slow()
+    started = time.perf_counter()
+    r = GeneticAlgorithm(problem, small(generations=500, max_seconds=0.2), seed=7).run()
+    assert time.perf_counter() - started < 0.8
+    assert r.stop_reason == "max_seconds" and not r.interrupted
+    calls = list(problem.calls)
+    assert 1 <= len(calls) < 60
+    assert r.best_cost == min(Seq().cost(g) for g in calls)
+
+
 def run_history(seed, evaluator=None, scheme="steady_state"):
     with_pool = GeneticAlgorithm(Seq(offset=0.25), small(scheme, generations=10), seed=seed, evaluator=evaluator)
     result = with_pool.run()

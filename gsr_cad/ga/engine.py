@@ -90,15 +90,21 @@ def _clean_cost(value: Any) -> float:
     return c
 
 
+class _OutOfTime(Exception):
+    """The time budget ran out inside a batch of evaluations (raised between items, in-process only)."""
+
+
 class _CostFn:
     """Picklable ``problem.cost`` wrapper; in the engine's own process it also records each result as it
-    comes, so costs computed before a Ctrl-C are not lost."""
+    comes, so costs computed before a Ctrl-C are not lost, and it ends a batch once the time budget is spent
+    (after at least one cost is known), so a slow first population cannot overrun ``max_seconds``."""
 
     def __init__(self, problem: Problem, sink: dict[GenomeT, float]) -> None:
         self.problem = problem
         self.sink = sink
         self.owner = os.getpid()
         self.should_stop: Callable[[], bool] | None = None
+        self.out_of_time: Callable[[], bool] | None = None
 
     def stopping(self) -> bool:
         """Whether the run was asked to stop (polled by in-process evaluators between items)."""
@@ -107,13 +113,15 @@ class _CostFn:
     def __call__(self, genome: GenomeT) -> float:
         if self.stopping():
             raise KeyboardInterrupt
+        if self.out_of_time is not None and self.sink and os.getpid() == self.owner and self.out_of_time():
+            raise _OutOfTime
         c = _clean_cost(self.problem.cost(genome))
         if self.sink is not None and os.getpid() == self.owner:
             self.sink[genome] = c
         return c
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None}
+        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None, "out_of_time": None}
 
 
 class GeneticAlgorithm:
@@ -188,6 +196,8 @@ class GeneticAlgorithm:
         """
         self._clock = time.perf_counter()
         self._cost_fn.should_stop = should_stop
+        budget = self.config.max_seconds
+        self._cost_fn.out_of_time = None if budget is None else (lambda: self._elapsed() >= budget)
         interrupted = False
         if checkpoint is not None:
             inner = on_generation
@@ -210,10 +220,14 @@ class GeneticAlgorithm:
         except KeyboardInterrupt:
             interrupted = True
             self._best_from_memo()
+        except _OutOfTime:
+            self._stop = "max_seconds"
+            self._best_from_memo()
         finally:
             self._seconds = self._elapsed()
             self._clock = None
             self._cost_fn.should_stop = None
+            self._cost_fn.out_of_time = None
         best_genome, best_cost = self.best
         return RunResult(best_genome=best_genome, best_cost=best_cost, history=list(self.history),
                          generations=max(self.generation, 0), evaluations=self.evaluations,
