@@ -77,7 +77,8 @@ from ..ga import GAConfig, GenerationReport, RunResult, fingerprint, start_or_re
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
-from ..geometry.surface_distance import area_samples, cloud_distance, mixed_mean_distance, sampling_radius
+from ..geometry.surface_distance import (NearTriangles, area_samples, cloud_distance, mixed_mean_distance,
+                                         sampling_radius)
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -96,6 +97,9 @@ rewrite must also keep the distance to the target within ``history_tolerance`` o
 DEFAULT_FIT_POINTS = 1500  # target points a fit scores when max_target_points is 0
 METRIC_POINTS = 20000  # area samples of a mesh target the reported distances use (a cloud: all its points)
 METRIC_CHUNK = 50_000  # points whose foot points the reported distances find at once (bounded memory)
+BACK_SAMPLES = 20_000
+"""Area samples of a mesh target whose triangles a fit with ``exact_back`` projects onto (its surface -> target
+direction, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); the reported metrics use every triangle."""
 SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 
@@ -327,9 +331,15 @@ class SurfaceProblem:
         point within that radius of its nearest point costs nothing and is not pulled (weight 0), one
         beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
+        With ``exact_back`` (a fine mesh, whose chords are its surface) the closest points are on the
+        triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way.
         """
         if self.exact_back:
-            d, near = self.target.closest(X)
+            near_triangles = self.__dict__.get("_near_triangles")
+            if near_triangles is None:
+                near_triangles = self._near_triangles = NearTriangles(self.target.points, self.target.faces,
+                                                                      BACK_SAMPLES, seed=_TARGET_SEED)
+            d, near = near_triangles.closest(X)
             return d, near, np.ones(len(X))
         d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
         near = self._cloud[idx]
@@ -384,6 +394,7 @@ class SurfaceProblem:
         rel, fails, stiff = self.config.polish_damping, 0, stiffness
         margin = _FIT_MARGIN if adaptive else 1.0
         lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
+        held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         smooth = None
         for r in range(max(rounds, 0) + 1):
@@ -434,7 +445,7 @@ class SurfaceProblem:
                                                   check_finite=False).reshape(n, 3) - V
                 except (np.linalg.LinAlgError, ValueError, RuntimeError):
                     break
-                trial = _sound_step(mesh, V, step, normals0, margin, lenient)
+                trial = _sound_step(mesh, V, step, normals0, margin, lenient, held)
                 if trial is not None:
                     V, moved = trial, True
                     break
@@ -573,16 +584,23 @@ def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
 
 
 def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
-                margin: float = 1.0, lenient: np.ndarray | None = None) -> np.ndarray | None:
+                margin: float = 1.0, lenient: np.ndarray | None = None,
+                held: np.ndarray | None = None) -> np.ndarray | None:
     """``V`` moved by ``step`` (or half or a quarter of it), the vertices of faces it would make unsound
     (:func:`_unsound_faces` with ``margin``, without it for the faces ``lenient``: those that were already
     inside the margin where the fit started) held where they are, in up to ``_FREEZE_PASSES`` passes, provided at least
-    ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound."""
+    ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound. The faces ``held`` (unsound
+    where the fit started) keep their vertices and are not checked: a few such faces do not stop the rest of
+    the cage from moving."""
     if not np.all(np.isfinite(step)):
         return None
-    total = float(np.abs(step).sum())
     corners = mesh.corners
     face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    held = held if held is not None and held.any() else None
+    if held is not None:
+        step = step.copy()
+        step[corners[held[face_of]]] = 0.0
+    total = float(np.abs(step).sum())
     for fraction in (1.0, 0.5, 0.25):
         s = fraction * step
         for _ in range(_FREEZE_PASSES):
@@ -590,6 +608,8 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
             bad = _unsound_faces(moved, normals0, margin)
             if lenient is not None and lenient.any():
                 bad[lenient] = _unsound_faces(moved, normals0)[lenient]
+            if held is not None:
+                bad[held] = False
             if not bad.any():
                 return V + s
             s = s.copy()
