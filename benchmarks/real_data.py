@@ -3,14 +3,18 @@ baseline (:mod:`baseline_quadremesh`) at the same number of control vertices.
 
 Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bone, the Stanford bunny
 (56k faces), an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by
-``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube), whichever are installed.
-pymeshlab's 10k-face bunny and cow and OpenSCAD's CSG, logo and GEB examples are left out: their genus
-(estimated by ``target_genus``) is not 0. No download at run time.
+``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube, a rounded foot under a
+tube, a relief of three stacked extrusions), whichever are installed. pymeshlab's 10k-face bunny and cow
+and OpenSCAD's CSG, logo and GEB examples are left out: their genus (estimated by ``target_genus``) is not
+0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes).
+No download at run time.
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
 then the baseline's vertices and the same distances, and gsr's accuracy/complexity front (control
-vertices: mean of both directions, the refinement's measure).
+vertices: mean of both directions, the refinement's measure; then ``/`` the baseline's mean of both
+directions, exact, at the vertex count QuadriFlow gives nearest it, in parentheses; ``--no-front-baselines``
+skips those).
 
     python benchmarks/real_data.py --max-seconds 300      # -> benchmarks/results/real_data.md
 """
@@ -36,11 +40,13 @@ from baseline_quadremesh import baseline  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "real_data.md"
 PYMESHLAB_MESHES = ("bone.ply", "bunny.obj", "airplane.obj")
-OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basics/text_on_cube.scad")
+OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basics/text_on_cube.scad",
+                  "Advanced/offset.scad", "Advanced/surface_image.scad")
 
 
-def targets(work: Path) -> list[Path]:
-    """The installed public meshes (module docstring), OpenSCAD parts rendered into ``work``."""
+def targets(work: Path, only: list[str] | None = None) -> list[Path]:
+    """The installed public meshes (module docstring), OpenSCAD parts rendered into ``work``; with ``only``,
+    those whose file names it lists (the others are not rendered)."""
     out = []
     try:
         import pymeshlab
@@ -53,6 +59,8 @@ def targets(work: Path) -> list[Path]:
     if shutil.which("openscad") and scad.is_dir():
         for part in OPENSCAD_PARTS:
             stl = work / (Path(part).stem + ".stl")
+            if only and stl.name not in only:
+                continue
             try:
                 subprocess.run(["openscad", "-o", str(stl), str(scad / part)], check=True, capture_output=True,
                                timeout=300)
@@ -62,21 +70,40 @@ def targets(work: Path) -> list[Path]:
     return out
 
 
+def _ops(letters: str) -> str:
+    """The op letters run-length encoded (a long history comes encoded already: "L9 V296")."""
+    return (letters if " " in letters else run_length(letters)) or "-"
+
+
+def _front_point(target, point: dict, with_baseline: bool) -> str:
+    """One front point, ``V: distance``, and with ``with_baseline`` the baseline's mean of both directions at
+    the vertex count QuadriFlow gives nearest it (``/ -`` when none)."""
+    text = f"{point['vertices']}: {point['distance']:.1e}"
+    if not with_baseline:
+        return text
+    b = baseline(target, point["vertices"])
+    if b.control is None:
+        return text + " / -"
+    return text + f" / {b.metrics['symmetric_distance']:.1e} ({b.control.n_vertices})"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-seconds", type=float, default=300.0, help="search budget per target")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--only", nargs="*", help="target file names to run")
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--no-front-baselines", dest="front_baselines", action="store_false",
+                    help="skip the baseline at every front point (only at gsr's result)")
     args = ap.parse_args(argv)
     header = ("| target | faces | gsr V | ops | data->fit mean / max | fit->data mean / max | s "
-              "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance) |")
+              "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance / baseline (its V)) |")
     lines = ["# Real-data surface benchmark", "", environment(), f"Load average at start: {load_average()}; "
              "the machine was shared, so seconds are noisy.", "",
              f"Search budget {args.max_seconds:g} s per target (`--max-seconds`), seed {args.seed}; baseline `-`: "
              "QuadriFlow gave no quad mesh near that vertex count.", "", header, "|" + "---|" * 11]
     with tempfile.TemporaryDirectory() as tmp:
-        for path in targets(Path(tmp)):
+        for path in targets(Path(tmp), args.only):
             if args.only and path.name not in args.only:
                 continue
             target = surface_target(path)
@@ -89,8 +116,8 @@ def main(argv: list[str] | None = None) -> int:
             base = ("| - | - | - |" if b.control is None else
                     f"| {b.control.n_vertices} | {bm['data_to_fit_mean']:.2e} / {bm['data_to_fit_max']:.2e} "
                     f"| {bm['fit_to_data_mean']:.2e} / {bm['fit_to_data_max']:.2e} |")
-            base += " " + ", ".join(f"{p['vertices']}: {p['distance']:.1e}" for p in m["front"]) + " |"
-            row = (f"| {path.name} | {len(target.faces)} | {m['n_control_vertices']} | {run_length(m['ops']) or '-'} "
+            base += " " + ", ".join(_front_point(target, p, args.front_baselines) for p in m["front"]) + " |"
+            row = (f"| {path.name} | {len(target.faces)} | {m['n_control_vertices']} | {_ops(m['ops'])} "
                    f"| {m['data_to_fit_mean']:.2e} / {m['data_to_fit_max']:.2e} "
                    f"| {m['fit_to_data_mean']:.2e} / {m['fit_to_data_max']:.2e} | {seconds:.0f} " + base)
             print(row, flush=True)

@@ -148,3 +148,12 @@ def test_a_fit_moves_the_cage_around_faces_that_start_unsound():
     moved, cost = problem.fit(start, 4, min_gain=1.0, adaptive=True, stiffness=0.1)
     assert cost < 0.8 * problem.fit(start, 0)[1]
     np.testing.assert_array_equal(moved[list(face)], v[list(face)])  # the unsound face's vertices held
+
+
+def test_a_fit_past_its_deadline_runs_no_round():
+    target = surface_target(limit_mesh(_blob(1), 3), "blob")
+    cube = box_template(target)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), cube)
+    vertices, cost = problem.fit(cube, 5, adaptive=True, deadline=time.perf_counter())
+    np.testing.assert_array_equal(vertices, cube.vertices)
+    assert cost == problem.fit(cube, 0)[1] > problem.fit(cube, 5, adaptive=True)[1]

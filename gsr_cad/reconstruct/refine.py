@@ -213,9 +213,13 @@ def _stop_when(deadline: float | None, should_stop: Callable[[], bool] | None) -
     return out_of_time
 
 
+_MARGIN = 2.0  # a fit's predicted seconds are this many times the last fit's rate (larger cages cost more)
+
+
 class _Fitter:
     """The refinement's fits (adaptive, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`), timed: a fit
-    predicted to end after the deadline (from the seconds per round and control vertex so far) is skipped."""
+    predicted to end after the deadline (from the seconds per round and control vertex so far, ``_MARGIN``
+    times) is skipped, and no round of one starts after it."""
 
     def __init__(self, problem, deadline: float | None):
         self.problem = problem
@@ -223,11 +227,13 @@ class _Fitter:
         self.rate = 0.0
 
     def fits_in_time(self, mesh: PolyMesh, rounds: int) -> bool:
-        return self.deadline is None or time.perf_counter() + self.rate * rounds * mesh.n_vertices <= self.deadline
+        return (self.deadline is None
+                or time.perf_counter() + _MARGIN * self.rate * rounds * mesh.n_vertices <= self.deadline)
 
     def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
-        out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness)
+        out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
+                               deadline=self.deadline)
         self.rate = (time.perf_counter() - start) / max(rounds * mesh.n_vertices, 1)
         return out
 

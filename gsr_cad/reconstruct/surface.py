@@ -366,7 +366,7 @@ class SurfaceProblem:
         return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
     def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None,
-            adaptive: bool = False, stiffness: float = 1.0) -> tuple[np.ndarray, float]:
+            adaptive: bool = False, stiffness: float = 1.0, deadline: float | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
@@ -383,6 +383,7 @@ class SurfaceProblem:
         fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
         far from the target): a round that raises the cost is undone and retried ten times more damped (up
         to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
+        ``deadline`` (a ``time.perf_counter()`` value): no round starts after it.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -403,7 +404,7 @@ class SurfaceProblem:
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
-            if r == rounds or cost == 0.0:
+            if r == rounds or cost == 0.0 or (deadline is not None and time.perf_counter() >= deadline):
                 break
             if adaptive and saved is not None and cost >= saved[3]:
                 fails += 1  # the step made it worse: back to where it started, damped more
@@ -1001,8 +1002,13 @@ REFINE_POINTS = 8000
 
 REFINE_EXACT_TRIANGLES = 1000
 """A mesh target with at least this many triangles is fitted by the refinement to its triangles both ways
-(a fine mesh's chords are its surface); a coarser one, like the search, to its area samples, each standing
+(a fine mesh's chords are its surface; the back direction to the triangles near ``BACK_SAMPLES`` area
+samples and every centroid, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); a coarser one, like the search, to its area samples, each standing
 for the surface within its sampling radius (a coarse tessellation's chords are not its surface)."""
+
+
+METRICS_SHARE = 0.05
+"""Share of the refinement's time left to the final metrics (exact, on all points) of a large cage."""
 
 
 class Growth(NamedTuple):
@@ -1025,6 +1031,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
     the winner is within ``goal`` already and no tolerance was asked."""
     config = problem.config
+    if deadline is not None:  # the final metrics on all points come after it
+        deadline -= METRICS_SHARE * max(deadline - time.perf_counter(), 0.0)
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
     exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
