@@ -3,16 +3,20 @@ baseline (:mod:`baseline_quadremesh`) at the same number of control vertices.
 
 Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bone, the Stanford bunny
 (56k faces), an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by
-``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube), whichever are installed.
-pymeshlab's 10k-face bunny and cow and OpenSCAD's CSG, logo and GEB examples are left out: their genus
-(estimated by ``target_genus``) is not 0. Then issue 13's genus targets (``genus_creases.genus_targets``: built
-nut, torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their
-genus in the name cell. No download at run time.
+``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube, a rounded foot under a
+tube, a relief of three stacked extrusions), whichever are installed. pymeshlab's 10k-face bunny and cow
+and OpenSCAD's CSG, logo and GEB examples are left out here: their genus (estimated by ``target_genus``) is
+not 0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes).
+Then issue 13's genus targets (``genus_creases.genus_targets``: built nut, torus, ring, frame and the public
+genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
+run time. ``--jobs 2`` runs two targets at a time (one core each) and prints the same table in the same order.
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
 then the baseline's vertices and the same distances, and gsr's accuracy/complexity front (control
-vertices: mean of both directions, the refinement's measure).
+vertices: mean of both directions, the refinement's measure; then ``/`` the baseline's mean of both
+directions, exact, at the vertex count QuadriFlow gives nearest it, in parentheses; ``--no-front-baselines``
+skips those).
 
     python benchmarks/real_data.py --max-seconds 300      # -> benchmarks/results/real_data.md
 """
@@ -20,11 +24,13 @@ vertices: mean of both directions, the refinement's measure).
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from gsr_cad.atomic import write_text
@@ -39,11 +45,13 @@ from genus_creases import GENUS_OPTIONS, genus_targets  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "real_data.md"
 PYMESHLAB_MESHES = ("bone.ply", "bunny.obj", "airplane.obj")
-OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basics/text_on_cube.scad")
+OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basics/text_on_cube.scad",
+                  "Advanced/offset.scad", "Advanced/surface_image.scad")
 
 
-def targets(work: Path) -> list[Path]:
-    """The installed public meshes (module docstring), OpenSCAD parts rendered into ``work``."""
+def targets(work: Path, only: list[str] | None = None) -> list[Path]:
+    """The installed public meshes (module docstring), OpenSCAD parts rendered into ``work``; with ``only``,
+    those whose file names it lists (the others are not rendered)."""
     out = []
     try:
         import pymeshlab
@@ -56,6 +64,8 @@ def targets(work: Path) -> list[Path]:
     if shutil.which("openscad") and scad.is_dir():
         for part in OPENSCAD_PARTS:
             stl = work / (Path(part).stem + ".stl")
+            if only and stl.name not in only:
+                continue
             try:
                 subprocess.run(["openscad", "-o", str(stl), str(scad / part)], check=True, capture_output=True,
                                timeout=300)
@@ -65,47 +75,74 @@ def targets(work: Path) -> list[Path]:
     return out
 
 
+def _ops(letters: str) -> str:
+    """The op letters run-length encoded (a long history comes encoded already: "L9 V296")."""
+    return (letters if " " in letters else run_length(letters)) or "-"
+
+
+def _front_point(target, point: dict, with_baseline: bool) -> str:
+    """One front point, ``V: distance``, and with ``with_baseline`` the baseline's mean of both directions at
+    the vertex count QuadriFlow gives nearest it (``/ -`` when none)."""
+    text = f"{point['vertices']}: {point['distance']:.1e}"
+    if not with_baseline:
+        return text
+    b = baseline(target, point["vertices"])
+    if b.control is None:
+        return text + " / -"
+    return text + f" / {b.metrics['symmetric_distance']:.1e} ({b.control.n_vertices})"
+
+
+def _row(name: str, target, options: dict, args: argparse.Namespace) -> str:
+    """One table row: gsr on ``target`` (with ``options``), the baseline at its vertex count and its front."""
+    start = time.perf_counter()
+    result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds, **options)
+    m = result.metrics
+    if options:
+        name += (f" (genus {m['target_genus']} / {m['result_genus']}"
+                 f"{'' if m['target_genus'] == m['result_genus'] else ' !'})")
+    seconds = time.perf_counter() - start
+    b = baseline(target, m["n_control_vertices"])
+    bm = b.metrics
+    base = ("| - | - | - |" if b.control is None else
+            f"| {b.control.n_vertices} | {bm['data_to_fit_mean']:.2e} / {bm['data_to_fit_max']:.2e} "
+            f"| {bm['fit_to_data_mean']:.2e} / {bm['fit_to_data_max']:.2e} |")
+    base += " " + ", ".join(_front_point(target, p, args.front_baselines) for p in m["front"]) + " |"
+    return (f"| {name} | {len(target.faces)} | {m['n_control_vertices']} | {_ops(m['ops'])} "
+            f"| {m['data_to_fit_mean']:.2e} / {m['data_to_fit_max']:.2e} "
+            f"| {m['fit_to_data_mean']:.2e} / {m['fit_to_data_max']:.2e} | {seconds:.0f} " + base)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-seconds", type=float, default=300.0, help="search budget per target")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--only", nargs="*", help="target file names to run")
+    ap.add_argument("--only", nargs="*", help="target names to run (file names; genus targets by name)")
+    ap.add_argument("--jobs", type=int, default=1, help="targets run at a time, in separate processes")
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--no-front-baselines", dest="front_baselines", action="store_false",
+                    help="skip the baseline at every front point (only at gsr's result)")
     args = ap.parse_args(argv)
+    if args.jobs < 1:
+        ap.error("--jobs must be at least 1")
     header = ("| target | faces | gsr V | ops | data->fit mean / max | fit->data mean / max | s "
-              "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance) |")
+              "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance / baseline (its V)) |")
     lines = ["# Real-data surface benchmark", "", environment(), f"Load average at start: {load_average()}; "
-             "the machine was shared, so seconds are noisy.", "",
+             f"{args.jobs} target(s) at a time.", "",
              f"Search budget {args.max_seconds:g} s per target (`--max-seconds`), seed {args.seed}; baseline `-`: "
              "QuadriFlow gave no quad mesh near that vertex count.", "", header, "|" + "---|" * 11]
     with tempfile.TemporaryDirectory() as tmp:
-        # issue 13's genus targets (benchmarks/genus_creases.py) follow, with the genus template and creases;
-        # their name cell gives the genus (target / result, "!" where they differ)
-        runs = [(path.name, surface_target(path), {}) for path in targets(Path(tmp))]
+        runs = [(path.name, surface_target(path), {}) for path in targets(Path(tmp), args.only)]
         runs += [(name, target, GENUS_OPTIONS) for name, target in genus_targets(Path(tmp)).items()]
-        for name, target, options in runs:
-            if args.only and name not in args.only:
-                continue
-            start = time.perf_counter()
-            result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds, **options)
-            m = result.metrics
-            if options:
-                name += (f" (genus {m['target_genus']} / {m['result_genus']}"
-                         f"{'' if m['target_genus'] == m['result_genus'] else ' !'})")
-            seconds = time.perf_counter() - start
-            b = baseline(target, m["n_control_vertices"])
-            bm = b.metrics
-            base = ("| - | - | - |" if b.control is None else
-                    f"| {b.control.n_vertices} | {bm['data_to_fit_mean']:.2e} / {bm['data_to_fit_max']:.2e} "
-                    f"| {bm['fit_to_data_mean']:.2e} / {bm['fit_to_data_max']:.2e} |")
-            base += " " + ", ".join(f"{p['vertices']}: {p['distance']:.1e}" for p in m["front"]) + " |"
-            row = (f"| {name} | {len(target.faces)} | {m['n_control_vertices']} | {run_length(m['ops']) or '-'} "
-                   f"| {m['data_to_fit_mean']:.2e} / {m['data_to_fit_max']:.2e} "
-                   f"| {m['fit_to_data_mean']:.2e} / {m['fit_to_data_max']:.2e} | {seconds:.0f} " + base)
-            print(row, flush=True)
-            lines.append(row)
-            write_text(args.out, "\n".join(lines) + "\n")  # each row as it lands (a bounded run may be cut)
-    write_text(args.out, "\n".join(lines) + "\n")
+        runs = [run for run in runs if not args.only or run[0] in args.only]
+        rows: list[str | None] = [None] * len(runs)
+        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {pool.submit(_row, *run, args): i for i, run in enumerate(runs)}
+            for future in as_completed(futures):
+                rows[futures[future]] = future.result()
+                print(rows[futures[future]], flush=True)
+                done = [row for row in rows if row is not None]  # rows as they land (a bounded run may be cut)
+                write_text(args.out, "\n".join(lines + done) + "\n")
+    write_text(args.out, "\n".join(lines + [row for row in rows if row is not None]) + "\n")
     print(f"wrote {args.out}")
     return 0
 

@@ -13,7 +13,7 @@ from trimesh.triangles import closest_point as trimesh_closest_point
 from gsr_cad.errors import InputError
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
-from gsr_cad.geometry.surface_distance import (TriangleSet, closest_on_triangles, cloud_distance,
+from gsr_cad.geometry.surface_distance import (NearTriangles, TriangleSet, closest_on_triangles, cloud_distance,
                                                mixed_mean_distance, point_to_surface, sampling_radius,
                                                triangulate)
 
@@ -225,3 +225,22 @@ def test_cloud_distance_and_sampling_radius():
     d, idx = cloud_distance(np.array([[0.0, 0.5, 0], [6, 10, 0]]), pts, np.array([1.0, 1, 1, 2]))
     np.testing.assert_allclose(d, [0.0, 8.0])
     np.testing.assert_array_equal(idx, [0, 3])
+
+
+@pytest.mark.parametrize("count", [300, 5000])
+def test_near_triangles_agree_with_the_exact_closest_points(count):
+    mesh = limit_mesh(unit_cube(), 4)
+    tris = np.array([t for f in mesh.faces for t in ((f[0], f[1], f[2]), (f[0], f[2], f[3]))])
+    v = mesh.vertices
+    area = 0.5 * np.linalg.norm(np.cross(v[tris[:, 1]] - v[tris[:, 0]], v[tris[:, 2]] - v[tris[:, 0]]), axis=1).sum()
+    rng = np.random.default_rng(5)
+    far = v.mean(axis=0) + rng.normal(size=(3000, 3)) * 0.5 * mesh.diagonal
+    near = v[rng.integers(len(v), size=3000)] + rng.normal(size=(3000, 3)) * 1e-3 * mesh.diagonal
+    x = np.concatenate([far, near])
+    exact = TriangleSet(v, tris).closest(x).distance
+    d, point = NearTriangles(v, tris, count).closest(x)
+    assert np.all(d >= exact - 1e-12)  # a point of the mesh: never nearer than the nearest
+    np.testing.assert_allclose(np.linalg.norm(point - x, axis=1), d, atol=1e-12)
+    spacing = np.sqrt(area / (count + len(tris)))  # the samples' spacing
+    assert np.abs(d - exact).max() < 0.25 * spacing  # a neighbour of the nearest triangle at worst
+    assert np.mean(d > exact + 1e-9 * mesh.diagonal) < 0.05 and np.mean(d - exact) < 1e-3 * spacing

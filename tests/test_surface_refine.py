@@ -113,3 +113,47 @@ def test_the_paper_preset_does_not_refine():
     result = reconstruct_surface(target, seed=1, preset="paper", generations=1, population=4, initial_population=4,
                                  n_parents=2, n_perturb=1, n_newcomers=1, max_children=1)
     assert result.metrics["refinement"] == []
+
+
+def test_the_refinement_keeps_going_when_no_single_proposal_is_left(monkeypatch):
+    import gsr_cad.reconstruct.refine as refine_module
+
+    monkeypatch.setattr(refine_module, "candidates", lambda mesh, res: [])
+    monkeypatch.setattr(refine_module, "split_all", lambda state, fitted: None)
+    target = surface_target(limit_mesh(_blob(0), 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
+    problem.max_faces = 400
+    seen = []
+    genome, levels = refine(problem, (), 2e-4, time.perf_counter() + 90, 400,
+                            record=lambda mesh, cost, history: seen.append(history))
+    assert len(levels) >= 2 and len(levels[1].ops) >= 2  # several edge loops at once
+    assert all(isinstance(op, EdgeLoop) for op in levels[1].ops)
+    assert levels[-1].cost < 0.995 * levels[0].cost
+    replayed = problem.control_mesh(genome)
+    assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
+def test_a_fit_moves_the_cage_around_faces_that_start_unsound():
+    from gsr_cad.reconstruct.surface import _unsound_faces
+
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    v = fine.vertices.copy()
+    face = fine.faces[0]
+    v[face[0]] = v[face[2]] + 1e-9 * (v[face[1]] - v[face[2]])  # a degenerate (unsound) face
+    start = fine.with_vertices(v)
+    assert _unsound_faces(start, start.face_newell)[0]
+    target = surface_target(limit_mesh(fine.with_vertices(1.3 * fine.vertices), 3), "big")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), start)
+    moved, cost = problem.fit(start, 4, min_gain=1.0, adaptive=True, stiffness=0.1)
+    assert cost < 0.8 * problem.fit(start, 0)[1]
+    np.testing.assert_array_equal(moved[list(face)], v[list(face)])  # the unsound face's vertices held
+
+
+def test_a_fit_past_its_deadline_runs_no_round():
+    target = surface_target(limit_mesh(_blob(1), 3), "blob")
+    cube = box_template(target)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), cube)
+    vertices, cost = problem.fit(cube, 5, adaptive=True, deadline=time.perf_counter())
+    np.testing.assert_array_equal(vertices, cube.vertices)
+    assert cost == problem.fit(cube, 0)[1] > problem.fit(cube, 5, adaptive=True)[1]

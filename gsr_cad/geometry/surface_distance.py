@@ -289,13 +289,7 @@ def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int 
     surface it samples while its chords do not, so the same smooth surface tessellated at any density gives
     the same distances, and a mean over the vertices alone would miss the interior of a long triangle or of
     a flat face."""
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64)
-    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    total = float(area.sum())
-    if not total > 0:
-        raise InputError("cannot sample a mesh by area: its triangles have no area")
+    v, t, a, b, c, area = _with_areas(vertices, triangles)
     longest = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
                         np.linalg.norm(a - c, axis=1)], axis=1).max(axis=1)
     large = (longest > LARGE_TRIANGLE * float(np.median(longest))) | facet_triangles(v, t)
@@ -306,12 +300,27 @@ def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int 
     out = v[np.minimum(pick, len(v) - 1)].copy()
     inside = np.flatnonzero(pick >= len(v))
     if inside.size:
-        f = pick[inside] - len(v)
-        r1, r2 = rng.random(inside.size), rng.random(inside.size)
-        flip = r1 + r2 > 1.0
-        r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
-        out[inside] = a[f] + r1[:, None] * (b[f] - a[f]) + r2[:, None] * (c[f] - a[f])
+        out[inside] = _inside(a, b, c, pick[inside] - len(v), rng)
     return out
+
+
+def _with_areas(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(vertices, triangles, corners a, b, c, areas)`` of a mesh to sample by area; InputError without area."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    if not float(area.sum()) > 0:
+        raise InputError("cannot sample a mesh by area: its triangles have no area")
+    return v, t, a, b, c, area
+
+
+def _inside(a: np.ndarray, b: np.ndarray, c: np.ndarray, f: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One uniform random point inside triangle ``(a[i], b[i], c[i])`` for every ``i`` in ``f``."""
+    r1, r2 = rng.random(f.size), rng.random(f.size)
+    flip = r1 + r2 > 1.0
+    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+    return a[f] + r1[:, None] * (b[f] - a[f]) + r2[:, None] * (c[f] - a[f])
 
 
 def mixed_mean_distance(a: np.ndarray, t: np.ndarray, diagonal: float, t_tree: cKDTree | None = None,
@@ -397,3 +406,36 @@ def point_to_surface(limit_vertices: np.ndarray, limit_triangles: np.ndarray, ta
         radius = sampling_radius(tp, tree) if target_radius is None else target_radius
         back, _ = cloud_distance(lv, tp, radius, tree)
     return SurfaceDistances(closest.distance, back, closest)
+
+
+class NearTriangles:
+    """Fast, nearly exact closest points on a fixed triangle mesh (a refinement's many fits): a KD-tree of
+    every triangle's centroid and ``count`` area samples drawn inside the triangles (large ones get several),
+    each remembering its triangle; a query projects exactly onto the triangles of its ``k`` nearest samples
+    and keeps the nearest. The answer is a point of the mesh, so its distance is never below the exact one,
+    and it is exact whenever the nearest triangle owns one of those samples (nearly always; otherwise the
+    triangle found is a neighbour of it). Unlike :class:`TriangleSet`, no bound is certified, so a query is
+    one KD-tree search and ``k`` projections."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, count: int = 20_000, k: int = 8,
+                 seed: int = 0):
+        _, t, a, b, c, area = _with_areas(vertices, triangles)
+        rng = np.random.default_rng(seed)
+        owner = rng.choice(len(t), size=int(count), p=area / area.sum())
+        points = _inside(a, b, c, owner, rng)
+        owner = np.concatenate([owner, np.arange(len(t))])
+        points = np.concatenate([points, (a + b + c) / 3.0])
+        self._owner = owner
+        self._tree = cKDTree(points)
+        self._data = _Triangles(a, b, c)
+        self.k = min(int(k), len(owner))
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(distance, closest point)`` of every row of ``points`` ``(q, 3)`` (class docstring)."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        _, idx = self._tree.query(p, k=self.k)
+        tri = self._owner[np.asarray(idx).reshape(len(p), self.k)]
+        d, point, _ = self._data.closest(np.repeat(p, self.k, axis=0), tri.ravel())
+        best = np.argmin(d.reshape(len(p), self.k), axis=1)
+        pick = np.arange(len(p)) * self.k + best
+        return d[pick], point[pick]

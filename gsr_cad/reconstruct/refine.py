@@ -11,9 +11,14 @@ bends; and a split of the whole cage (an edge loop through every ring: one Catmu
 connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
 proposal is fitted by a few rounds of the adaptive least-squares fit
 (:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
-of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most per
-added control vertex is kept and fitted further. Levels stop once the distance reaches the goal, the
-time or face budget runs out, or no proposal gains.
+of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most for
+its growth (``LEVEL_COST``) is kept and fitted further, the next one when its full fit gains too little or
+its moves cannot replay (then the cage the replayable moves reach stands, if it gains). When no single
+proposal gains, several edge loops are added at once (:func:`_fallback`). Faces the fit starts from
+unsound (a split of a skewed cage) keep their vertices; the rest of the cage still moves. The fits' back
+direction projects onto a fine mesh target's triangles near a bounded area sample of it
+(:class:`~gsr_cad.geometry.surface_distance.NearTriangles`), the reported metrics onto all of them. Levels
+stop once the distance reaches the goal, the time or face budget runs out, or nothing gains.
 
 History: the structural ops replay on the geometry the search left them (the template's, moved by the
 search's ops), where they apply cleanly, followed by the moves of the final fit (in stages when the
@@ -45,6 +50,10 @@ LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
 STIFFNESS = 0.1  # first stiffness of the adaptive fits (see SurfaceProblem.fit)
+LEVEL_COST = 1.0
+"""A level's own cost in the proposals' ranking, as the log of a cage growth: a proposal scores its log-gain
+in distance over (log of the cage's growth + this), so a split that gains more per level beats a local op
+that gains more per added vertex when the residual is spread (coarse to fine within the time)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,9 +213,13 @@ def _stop_when(deadline: float | None, should_stop: Callable[[], bool] | None) -
     return out_of_time
 
 
+_MARGIN = 2.0  # a fit's predicted seconds are this many times the last fit's rate (larger cages cost more)
+
+
 class _Fitter:
     """The refinement's fits (adaptive, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`), timed: a fit
-    predicted to end after the deadline (from the seconds per round and control vertex so far) is skipped."""
+    predicted to end after the deadline (from the seconds per round and control vertex so far, ``_MARGIN``
+    times) is skipped, and no round of one starts after it."""
 
     def __init__(self, problem, deadline: float | None):
         self.problem = problem
@@ -214,11 +227,13 @@ class _Fitter:
         self.rate = 0.0
 
     def fits_in_time(self, mesh: PolyMesh, rounds: int) -> bool:
-        return self.deadline is None or time.perf_counter() + self.rate * rounds * mesh.n_vertices <= self.deadline
+        return (self.deadline is None
+                or time.perf_counter() + _MARGIN * self.rate * rounds * mesh.n_vertices <= self.deadline)
 
-    def __call__(self, mesh: PolyMesh, rounds: int) -> tuple[np.ndarray, float]:
+    def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
-        out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=STIFFNESS)
+        out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
+                               deadline=self.deadline)
         self.rate = (time.perf_counter() - start) / max(rounds * mesh.n_vertices, 1)
         return out
 
@@ -281,38 +296,100 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 v, c = _fit(b, rounds)
             except GsrError:
                 continue
-            gain = (cost - c) / max(b.n_vertices - mesh.n_vertices, 1)
+            gain = math.log(cost / c) / (math.log(b.n_vertices / mesh.n_vertices) + LEVEL_COST) if c > 0 else math.inf
             if math.isfinite(c) and c < cost:
                 scored.append((gain, len(scored), ops, a, b, v, c))
         chosen = None
-        # the best gain per added vertex first; the next if its full fit gains too little
-        for _, _, ops, a, b, v, c in sorted(scored, key=lambda t: (-t[0], t[1]))[:LEVEL_TRIES]:
+        # the best gain per added vertex first; the next if its full fit gains too little or cannot replay
+        ranked = sorted(scored, key=lambda t: (-t[0], t[1]))
+        for _, _, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
             if out_of_time():
                 break
             if len(ops) == 1:
                 v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
             if c < MIN_GAIN * cost:
-                chosen = (ops, a, b, v, c)
-                break
+                chosen = _commit(problem, base, base_state, full, ops, a, b.with_vertices(v), c, cost)
+                if chosen is not None:
+                    break
+        if chosen is None:
+            chosen = _fallback(problem, _fit, out_of_time, mesh, cost, base, base_state, full, res, max_faces)
         if chosen is None:
             break
-        ops, a, b, v, c = chosen
-        step = None if a is None else _reach(problem, base + ops, a, v)
-        if step is not None:
-            base, base_state = base + ops, a
-        else:
-            prefix, state = _after(problem, full, ops)
-            if state is None:
-                break
-            step = _reach(problem, prefix + ops, state, v)
-            if step is None:
-                break
-            base, base_state = prefix + ops, state
-        full, mesh, cost = step, b.with_vertices(v), c
+        ops, base, base_state, step, reached, c = chosen
+        full, mesh, cost = step, reached, c
         levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
         if record is not None:
             record(mesh, cost, full)
     return full, levels
+
+
+def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,
+            fitted: PolyMesh, c: float, cost: float) -> tuple | None:
+    """A level from the fitted cage of ``ops``: ``(ops, the new base, its state, the level's genome, the cage it
+    replays to, its distance)``. The ops replay on the base's geometry (``a``, when they apply there) or
+    after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
+    moves refuse, the cage the others reach stands if it still gains (below ``MIN_GAIN`` of ``cost``); else
+    None."""
+    if a is not None:
+        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices)
+        if not left:
+            return ops, base + ops, a, step, fitted, c
+    prefix, state = _after(problem, full, ops)
+    if state is None:
+        return None
+    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices)
+    if left:
+        try:
+            c = problem.fit(reached, 0)[1]
+        except GsrError:
+            return None
+        if not c < MIN_GAIN * cost:
+            return None
+    return ops, prefix + ops, state, step, reached, c
+
+
+def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,
+              full: tuple, res: Residual, max_faces: int) -> tuple | None:
+    """When no single proposal gains: every edge ring the residual picks at once (a coarse-to-fine jump where
+    the residual is spread), then those of the whole cage (each added where it applies), each fitted in full.
+    A level as :func:`_commit` makes it, or None."""
+    rings = edge_rings(mesh)
+    if not rings:
+        return None
+    total = np.array([res.total[faces].sum() for _, faces in rings])
+    order = [int(i) for i in np.argsort(-total)]
+    for count in dict.fromkeys((max(2, len(order) // 2), len(order))):
+        if out_of_time():
+            return None
+        ops, b = (), mesh
+        for i in order[:count]:
+            # a loop splits only its own ring's edges: the others keep their ends, found by them
+            u, w = mesh_view(mesh).conn.edges[rings[i][0]]
+            index = {frozenset(e): k for k, e in enumerate(mesh_view(b).conn.edges)}
+            e = index.get(frozenset((u, w)))
+            if e is None:
+                continue
+            try:
+                grown = EdgeLoop(e).apply(b)
+            except OpError:
+                continue
+            if grown.n_faces > max_faces:
+                break
+            ops, b = ops + (EdgeLoop(e),), grown
+        if not ops or not _fit.fits_in_time(b, LEVEL_ROUNDS):
+            continue
+        try:
+            v, c = _fit(b, LEVEL_ROUNDS)
+        except GsrError:
+            continue
+        if not c < MIN_GAIN * cost:
+            continue
+        a = _apply(ops, base_state)
+        a = a if a is not None and a.topology_key == b.topology_key else None
+        chosen = _commit(problem, base, base_state, full, ops, a, b.with_vertices(v), c, cost)
+        if chosen is not None:
+            return chosen
+    return None
 
 
 def limit_cage(mesh: PolyMesh) -> PolyMesh:
@@ -342,6 +419,13 @@ def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
     if prefix is None:
         return genome, None
     return prefix, _apply(ops, problem.control_mesh(prefix))
+
+
+def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+    """``base`` (which builds ``state``) followed by the moves towards ``vertices`` that replay, the cage they
+    reach and how many vertices did not get there."""
+    moves, reached, refused = problem._moves(state, vertices)
+    return base + moves, reached, refused
 
 
 def _reach(problem, base: tuple, state: PolyMesh, vertices: np.ndarray) -> tuple | None:

@@ -85,7 +85,8 @@ from ..ga.pareto import has_pymoo, non_dominated
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
-from ..geometry.surface_distance import area_samples, cloud_distance, mixed_mean_distance, sampling_radius
+from ..geometry.surface_distance import (NearTriangles, area_samples, cloud_distance, mixed_mean_distance,
+                                         sampling_radius)
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -104,6 +105,9 @@ rewrite must also keep the distance to the target within ``history_tolerance`` o
 DEFAULT_FIT_POINTS = 1500  # target points a fit scores when max_target_points is 0
 METRIC_POINTS = 20000  # area samples of a mesh target the reported distances use (a cloud: all its points)
 METRIC_CHUNK = 50_000  # points whose foot points the reported distances find at once (bounded memory)
+BACK_SAMPLES = 20_000
+"""Area samples of a mesh target whose triangles a fit with ``exact_back`` projects onto (its surface -> target
+direction, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); the reported metrics use every triangle."""
 SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 
@@ -399,9 +403,15 @@ class SurfaceProblem:
         point within that radius of its nearest point costs nothing and is not pulled (weight 0), one
         beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
+        With ``exact_back`` (a fine mesh, whose chords are its surface) the closest points are on the
+        triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way.
         """
         if self.exact_back:
-            d, near = self.target.closest(X)
+            near_triangles = self.__dict__.get("_near_triangles")
+            if near_triangles is None:
+                near_triangles = self._near_triangles = NearTriangles(self.target.points, self.target.faces,
+                                                                      BACK_SAMPLES, seed=_TARGET_SEED)
+            d, near = near_triangles.closest(X)
             return d, near, np.ones(len(X))
         d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
         near = self._cloud[idx]
@@ -428,7 +438,7 @@ class SurfaceProblem:
         return sp.vstack([J1, J2], format="csr"), np.concatenate([y1, y2])
 
     def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None,
-            adaptive: bool = False, stiffness: float = 1.0) -> tuple[np.ndarray, float]:
+            adaptive: bool = False, stiffness: float = 1.0, deadline: float | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
@@ -445,6 +455,7 @@ class SurfaceProblem:
         fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
         far from the target): a round that raises the cost is undone and retried ten times more damped (up
         to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
+        ``deadline`` (a ``time.perf_counter()`` value): no round starts after it.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -456,6 +467,7 @@ class SurfaceProblem:
         rel, fails, stiff = self.config.polish_damping, 0, stiffness
         margin = _FIT_MARGIN if adaptive else 1.0
         lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
+        held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         smooth = None
         for r in range(max(rounds, 0) + 1):
@@ -464,7 +476,7 @@ class SurfaceProblem:
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
-            if r == rounds or cost == 0.0:
+            if r == rounds or cost == 0.0 or (deadline is not None and time.perf_counter() >= deadline):
                 break
             if adaptive and saved is not None and cost >= saved[3]:
                 fails += 1  # the step made it worse: back to where it started, damped more
@@ -506,7 +518,7 @@ class SurfaceProblem:
                                                   check_finite=False).reshape(n, 3) - V
                 except (np.linalg.LinAlgError, ValueError, RuntimeError):
                     break
-                trial = _sound_step(mesh, V, step, normals0, margin, lenient)
+                trial = _sound_step(mesh, V, step, normals0, margin, lenient, held)
                 if trial is not None:
                     V, moved = trial, True
                     break
@@ -723,16 +735,23 @@ def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
 
 
 def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
-                margin: float = 1.0, lenient: np.ndarray | None = None) -> np.ndarray | None:
+                margin: float = 1.0, lenient: np.ndarray | None = None,
+                held: np.ndarray | None = None) -> np.ndarray | None:
     """``V`` moved by ``step`` (or half or a quarter of it), the vertices of faces it would make unsound
     (:func:`_unsound_faces` with ``margin``, without it for the faces ``lenient``: those that were already
     inside the margin where the fit started) held where they are, in up to ``_FREEZE_PASSES`` passes, provided at least
-    ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound."""
+    ``_FREEZE_KEEP`` of the step's length stays; None when no such move is sound. The faces ``held`` (unsound
+    where the fit started) keep their vertices and are not checked: a few such faces do not stop the rest of
+    the cage from moving."""
     if not np.all(np.isfinite(step)):
         return None
-    total = float(np.abs(step).sum())
     corners = mesh.corners
     face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    held = held if held is not None and held.any() else None
+    if held is not None:
+        step = step.copy()
+        step[corners[held[face_of]]] = 0.0
+    total = float(np.abs(step).sum())
     for fraction in (1.0, 0.5, 0.25):
         s = fraction * step
         for _ in range(_FREEZE_PASSES):
@@ -740,6 +759,8 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
             bad = _unsound_faces(moved, normals0, margin)
             if lenient is not None and lenient.any():
                 bad[lenient] = _unsound_faces(moved, normals0)[lenient]
+            if held is not None:
+                bad[held] = False
             if not bad.any():
                 return V + s
             s = s.copy()
@@ -1133,8 +1154,13 @@ REFINE_POINTS = 8000
 
 REFINE_EXACT_TRIANGLES = 1000
 """A mesh target with at least this many triangles is fitted by the refinement to its triangles both ways
-(a fine mesh's chords are its surface); a coarser one, like the search, to its area samples, each standing
+(a fine mesh's chords are its surface; the back direction to the triangles near ``BACK_SAMPLES`` area
+samples and every centroid, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); a coarser one, like the search, to its area samples, each standing
 for the surface within its sampling radius (a coarse tessellation's chords are not its surface)."""
+
+
+METRICS_SHARE = 0.05
+"""Share of the refinement's time left to the final metrics (exact, on all points) of a large cage."""
 
 
 class Growth(NamedTuple):
@@ -1157,6 +1183,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
     the winner is within ``goal`` already and no tolerance was asked."""
     config = problem.config
+    if deadline is not None:  # the final metrics on all points come after it
+        deadline -= METRICS_SHARE * max(deadline - time.perf_counter(), 0.0)
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
     exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
