@@ -110,6 +110,7 @@ BACK_SAMPLES = 20_000
 direction, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); the reported metrics use every triangle."""
 SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
+CLOUD_POINTS_PER_FACE = 8  # data points a refined cage needs per face on a point cloud (refine_face_limit)
 
 
 def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
@@ -1174,6 +1175,15 @@ class Growth(NamedTuple):
     levels: list[dict[str, Any]]
 
 
+def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
+    """The largest cage the refinement may grow on ``target``: ``max_faces``, and for a point cloud at most one
+    face per :data:`CLOUD_POINTS_PER_FACE` points, as a cage with more unknowns than its data can pin fits the
+    points' scatter instead of a surface (a 200-point random cloud grew to 50 vertices in 24 s)."""
+    if target.faces is not None:
+        return max_faces
+    return min(max_faces, max(len(target.points) // CLOUD_POINTS_PER_FACE, 6))
+
+
 def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: float | None,
              searched: list[tuple[int, float, tuple]], should_stop: Callable[[], bool] | None,
              pick: bool) -> Growth | None:
@@ -1216,7 +1226,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     meets = [entry for entry in front(found) if entry[1] <= goal]
     if pick and meets:
         return Growth(meets[0][2], meets[0][1], front(found), [])
-    final, levels = refine(grower, genome, goal, deadline, config.refine_max_faces, record, should_stop)
+    final, levels = refine(grower, genome, goal, deadline, refine_face_limit(target, config.refine_max_faces), record,
+                           should_stop)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
