@@ -161,14 +161,7 @@ class CurveProblem:
         del path[start + 1:]
         state, children = path[start]
         for op in ops[start:]:
-            entry = children.get(op)
-            if entry is None:
-                try:
-                    nxt = op.apply(state)
-                except OpError:
-                    nxt = state
-                entry = children[op] = (nxt, {})
-                self._trie_size += 1
+            entry = self._child(state, children, op)
             path.append(entry)
             state, children = entry
         self._path_ops = ops
@@ -188,18 +181,24 @@ class CurveProblem:
             self._reset_trie()
         return state, children
 
+    def _child(self, state: curve_ops.Polygon, children: dict, op) -> tuple[curve_ops.Polygon, dict]:
+        """The trie entry of ``op`` applied to ``state`` (whose children are ``children``), made on first use;
+        an invalid op leaves the state as it is."""
+        entry = children.get(op)
+        if entry is None:
+            try:
+                nxt = op.apply(state)
+            except OpError:
+                nxt = state
+            entry = children[op] = (nxt, {})
+            self._trie_size += 1
+        return entry
+
     def _capped_walk(self, ops: tuple, keep: list) -> tuple[curve_ops.Polygon, dict]:
         """:meth:`_walk` with ``keep`` when some add would exceed :attr:`max_ctrl` (that add is skipped)."""
         state, children = self.template, self._trie
         for op in ops:
-            entry = children.get(op)
-            if entry is None:
-                try:
-                    nxt = op.apply(state)
-                except OpError:
-                    nxt = state
-                entry = children[op] = (nxt, {})
-                self._trie_size += 1
+            entry = self._child(state, children, op)
             nxt = entry[0]
             if nxt is state or (isinstance(op, curve_ops.AddPoint) and state.n >= self.max_ctrl):
                 continue
