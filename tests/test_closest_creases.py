@@ -10,7 +10,7 @@ from scipy.spatial import ConvexHull
 
 from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import unit_cube
-from gsr_cad.geometry.subdivision import limit_mesh
+from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import CreaseRim, EdgeLoop
 from test_limit_surface import _brute
 
@@ -37,11 +37,29 @@ def _inside_the_rim(mesh, count: int, seed: int) -> np.ndarray:
     return at - inward * radial - down * [0.0, 0.0, 1.0]
 
 
+def _inside_the_rim_corners(mesh, count: int, seed: int) -> np.ndarray:
+    """Points just inside the top cap's rim near the limit points of its vertices, where four patches meet
+    (two of the cap, two of the wall)."""
+    limit = get_catmull_clark(mesh, 1).limit_matrix[:mesh.n_vertices] @ mesh.vertices
+    top = limit[np.isclose(mesh.vertices[:, 2], mesh.vertices[:, 2].max())]
+    rim = top[np.linalg.norm(top[:, :2], axis=1) > 0.1]
+    rng = np.random.default_rng(seed)
+    at = rim[rng.choice(len(rim), count)]
+    radial = at * [1.0, 1.0, 0.0]
+    radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+    tangent = np.cross([0.0, 0.0, 1.0], radial)
+    scale = mesh.diagonal
+    return (at - rng.uniform(0.001, 0.02, (count, 1)) * scale * radial
+            - rng.uniform(0.001, 0.02, (count, 1)) * scale * [0.0, 0.0, 1.0]
+            + rng.uniform(-0.02, 0.02, (count, 1)) * scale * tangent)
+
+
+@pytest.mark.parametrize("near", [_inside_the_rim, _inside_the_rim_corners])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_points_inside_a_sharp_rim_find_the_nearer_side(seed):
+def test_points_inside_a_sharp_rim_find_the_nearer_side(near, seed):
     mesh = rimmed_box()
     surface = LimitSurface.of(mesh)
-    x = _inside_the_rim(mesh, 120, seed)
+    x = near(mesh, 120, seed)
     found = surface.closest(x)
     np.testing.assert_allclose(found.distance, _brute(surface, x), rtol=1e-7, atol=1e-12)
 

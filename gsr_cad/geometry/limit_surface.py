@@ -37,7 +37,7 @@ DEPTH = 5
 """Local refinement steps at extraordinary vertices: the pending quads left are ``4**-DEPTH`` of the
 area next to them, so their chord error is about ``1e-3 / 4**(DEPTH - 1)`` of a cube's diagonal."""
 _CANDIDATE_SAMPLES = 8  # nearest samples fetched per query point and patch depth
-_CANDIDATE_PATCHES = 2  # distinct patches per query point and patch depth
+_CANDIDATE_PATCHES = 4  # distinct patches per query point and patch depth (four meet at a regular vertex)
 _NEWTON = 12  # clamped Newton iterations per foot point (converged pairs stop earlier)
 _SEARCH_GRID = {0: 8, 1: 4, 2: 2}  # samples per patch side for the candidate search, by depth (else 1)
 _QUADRATURE = {0: 4, 1: 3, 2: 2}  # Gauss-Legendre points per patch side, by local depth (else 1)
