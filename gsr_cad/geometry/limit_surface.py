@@ -37,7 +37,7 @@ DEPTH = 5
 """Local refinement steps at extraordinary vertices: the pending quads left are ``4**-DEPTH`` of the
 area next to them, so their chord error is about ``1e-3 / 4**(DEPTH - 1)`` of a cube's diagonal."""
 _CANDIDATE_SAMPLES = 8  # nearest samples fetched per query point and patch depth
-_CANDIDATE_PATCHES = 2  # distinct patches per query point and patch depth
+_CANDIDATE_PATCHES = 4  # distinct patches per query point and patch depth (four meet at a regular vertex)
 _NEWTON = 12  # clamped Newton iterations per foot point (converged pairs stop earlier)
 _SEARCH_GRID = {0: 8, 1: 4, 2: 2}  # samples per patch side for the candidate search, by depth (else 1)
 _QUADRATURE = {0: 4, 1: 3, 2: 2}  # Gauss-Legendre points per patch side, by local depth (else 1)
@@ -239,10 +239,10 @@ class LimitSurface:
         """Points ``(q, 3)`` at ``(patch[i], u[i], v[i])``; with ``derivatives`` also ``S_u`` and ``S_v``."""
         return _evaluate(self.poles[patch].reshape(-1, 16, 3), u, v, derivatives)
 
-    def _search(self) -> list[tuple[cKDTree, np.ndarray, np.ndarray, float]]:
+    def _search(self) -> list[tuple[cKDTree, np.ndarray, np.ndarray, np.ndarray]]:
         """Per patch depth: a KD-tree of grid samples of its patches (spaced alike at every depth), their
-        patch and parameters ``(s, 2)``, and a covering radius (every point of those patches lies within
-        it of a sample of its own patch)."""
+        patch, parameters ``(s, 2)`` and covering radius ``(s,)`` (every point of a patch lies within its
+        radius of a sample of its own)."""
         if self._groups is None:
             dep = self.layout.depth
             self._groups = []
@@ -254,10 +254,12 @@ class LimitSurface:
                 owner = np.repeat(sel, u.size)
                 params = np.tile(np.stack([u, v], 1), (sel.size, 1))
                 pts = self.evaluate(owner, params[:, 0], params[:, 1])
-                # a patch lies in its poles' hull: each sample covers a cell of 1/m of the hull's width
-                poles = self.poles[sel].reshape(sel.size, 16, 3)
-                width = np.linalg.norm(poles.max(axis=1) - poles.min(axis=1), axis=1)
-                radius = float(width.max()) / m
+                # a uniform bicubic's derivative along u (v) is at most its largest pole step along u (v), and
+                # a cell's points are within 1 / (2 m) of its centre along each
+                poles = self.poles[sel]
+                step_u = np.linalg.norm(np.diff(poles, axis=1), axis=3).max(axis=(1, 2))
+                step_v = np.linalg.norm(np.diff(poles, axis=2), axis=3).max(axis=(1, 2))
+                radius = np.repeat((step_u + step_v) / (2 * m), u.size)
                 self._groups.append((cKDTree(pts), owner, params, radius))
             if len(self.layout.triangles):
                 self._pending = TriangleSet(self.corner_points, self.layout.triangles)
@@ -311,9 +313,10 @@ class LimitSurface:
 
         Candidates: per patch depth, the patches of the nearest grid samples (up to
         ``_CANDIDATE_PATCHES`` distinct ones: a foot point beyond a patch's edge lies on a neighbour), kept
-        when their sample is within that depth's covering radius of the nearest sample of any depth. The
-        nearest sample's patch is refined first by clamped Newton; the others only where that foot point
-        lies on the patch's border; the nearest foot point wins, or the nearest point of the pending
+        when their sample is within their patch's covering radius of the nearest sample of any depth. The
+        nearest sample's patch is refined first by clamped Newton; the others where that foot point lies on
+        the patch's border or where they may hold a nearer point (their sample's distance less their covering
+        radius below that foot point's); the nearest foot point wins, or the nearest point of the pending
         triangles where that is nearer. ``hint`` (the same points' hits on this layout at nearby control
         vertices, e.g. the previous polish round's) is refined first, and searched from scratch only where
         its foot point leaves the interior of its patch."""
@@ -365,14 +368,16 @@ class LimitSurface:
             first[:, 1:] = ~seen.any(axis=2)
             first &= np.cumsum(first, axis=1) <= _CANDIDATE_PATCHES
             r, c = np.nonzero(first)
-            found.append((r, own[r, c], params[idx[r, c]], dist[r, c], dist[r, c] - radius))
+            found.append((r, own[r, c], params[idx[r, c]], dist[r, c], dist[r, c] - radius[idx[r, c]]))
         if found:
             r, cand, start, dist, reach = (np.concatenate(a) for a in zip(*found))
             nearest = np.full(q, np.inf)
             np.minimum.at(nearest, r, dist)
             keep = reach <= nearest[r]
-            r, cand, start, dist = r[keep], cand[keep], start[keep], dist[keep]
-            # the nearest sample's patch first; the others only where its foot point is on the patch's border
+            r, cand, start, dist, reach = r[keep], cand[keep], start[keep], dist[keep], reach[keep]
+            # the nearest sample's patch first; the others where its foot point is on the patch's border or
+            # where they may hold a nearer point (an interior foot point may be a local minimum only: a point
+            # inside a sharp edge has one on each side)
             order = np.lexsort((dist, r))
             primary = np.zeros(r.size, dtype=bool)
             primary[order[np.r_[True, r[order][1:] != r[order][:-1]]]] = True
@@ -381,7 +386,10 @@ class LimitSurface:
                                                       x[r[primary]])
             inside = np.zeros(q, dtype=bool)
             inside[r[primary]] = (u[primary] > 0) & (u[primary] < 1) & (v[primary] > 0) & (v[primary] < 1)
-            rest = ~primary & ~inside[r]
+            first = np.full(q, np.inf)
+            first[r[primary]] = np.linalg.norm(
+                x[r[primary]] - self.evaluate(cand[primary], u[primary], v[primary]), axis=1)
+            rest = ~primary & (~inside[r] | (reach < first[r]))
             u[rest], v[rest] = self.foot_points(cand[rest], start[rest, 0], start[rest, 1], x[r[rest]])
             done = primary | rest
             r, cand, u, v = r[done], cand[done], u[done], v[done]
