@@ -29,7 +29,7 @@ def _box_target() -> SurfaceTarget:
 
 def test_a_bulge_over_a_flat_face_is_measured_in_full_and_pulled():
     target = _box_target()
-    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=400), _cube())
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=400), _cube(), exact_facets=True)
     assert on_facets(target, problem.points).all()
     lift = 0.01 * target.diagonal  # well inside the samples' spacing on a 400-point box
     assert lift < np.median(problem._cloud_radius)
@@ -38,11 +38,13 @@ def test_a_bulge_over_a_flat_face_is_measured_in_full_and_pulled():
     np.testing.assert_allclose(d, [lift, 2 * lift], rtol=1e-9)
     np.testing.assert_allclose(goal, X * [1, 1, 0] + [0, 0, 1], atol=1e-12)
     assert np.all(weight == 1.0)
+    search = SurfaceProblem(target, SurfaceConfig(max_target_points=400), _cube())  # the search keeps the slack
+    assert np.all(search._back(X)[0] < d)
 
 
 def test_a_smooth_tessellation_keeps_its_sampling_slack():
     target = surface_target(limit_mesh(_cube(), 2), "round")
-    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=400), _cube())
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=400), _cube(), exact_facets=True)
     assert not on_facets(target, problem.points).any()
     near = problem.points[:5] + 1e-3 * problem._cloud_radius[:5, None] * np.array([0.0, 0.0, 1.0])
     d, _, weight = problem._back(near)

@@ -175,7 +175,8 @@ class _Pairs(NamedTuple):
 class SurfaceProblem:
     """The GA problem for one target: random ops, repair, the cost of a genome and the polish."""
 
-    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh, exact_back: bool = False):
+    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh, exact_back: bool = False,
+                 exact_facets: bool = False):
         self.target = target
         self.exact_back = exact_back and target.faces is not None
         """Surface samples -> a mesh target's triangles (not its sampled points) in the fit (the refinement:
@@ -193,8 +194,10 @@ class SurfaceProblem:
         self._cloud_tree = cKDTree(cloud)
         self._cloud = cloud
         self._cloud_radius = sampling_radius(cloud, self._cloud_tree, CLOUD_SAMPLING_NEIGHBOURS)
-        self._on_facet = (on_facets(target, cloud) if target.faces is not None
+        self._on_facet = (on_facets(target, cloud) if exact_facets and target.faces is not None
                           else np.zeros(len(cloud), dtype=bool))
+        """With ``exact_facets`` (the refinement), which fit points lie on a planar face of the part (see
+        :meth:`_back`; the search keeps the cheaper slack everywhere)."""
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
@@ -408,8 +411,8 @@ class SurfaceProblem:
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
         With ``exact_back`` (a fine mesh, whose chords are its surface) the closest points are on the
         triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way; so
-        are the surface points whose nearest point lies on a planar face of the part (:func:`on_facets`),
-        which is its surface (else a bulge over a flat CAD face within the sampling radius went unseen).
+        are, with ``exact_facets``, the surface points whose nearest point lies on a planar face of the part
+        (:func:`on_facets`), which is its surface (else a bulge over a flat CAD face within the sampling radius went unseen).
         """
         if self.exact_back:
             d, near = self._near_triangles().closest(X)
@@ -1223,7 +1226,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     target = problem.target
     exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
     grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
-                            exact_back=exact)
+                            exact_back=exact, exact_facets=True)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
     start = grower.fit(grower.control_mesh(genome), 0)[1]
     if start <= goal and not pick:  # nothing to grow: the search's front and measure stand
