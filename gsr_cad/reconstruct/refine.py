@@ -5,9 +5,7 @@ residual of the current cage (the target's points -> their foot points on the ex
 surface's area samples -> the target) and attributes it to the control vertices by the weights with which
 each point depends on them (its sparse row of the limit map), then to the faces around them. The
 proposals aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
-extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inward extrude of
-the face over the largest inward error (surface webbing over a concavity or bulging over a flat face,
-measured from the surface's samples), an inset (I) of the
+extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the
 face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
 bends; and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
 connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
@@ -71,13 +69,11 @@ class Level:
 
 @dataclasses.dataclass(frozen=True)
 class Residual:
-    """Residual of a cage attributed to its faces: ``total`` (both directions), ``outward`` (target
-    points outside the surface, along its normal) and ``inward`` (surface samples outside the target, whose
-    closest target point lies behind them: webbing over a concavity, a bulge over a flat face) per face."""
+    """Residual of a cage attributed to its faces: ``total`` (both directions) and ``outward`` (target
+    points outside the surface, along its normal) per face."""
 
     total: np.ndarray
     outward: np.ndarray
-    inward: np.ndarray
 
 
 def residual(problem, mesh: PolyMesh) -> Residual:
@@ -89,18 +85,15 @@ def residual(problem, mesh: PolyMesh) -> Residual:
     d_fwd = problem.point_weight * foot.distance
     signed = np.einsum("ij,ij->i", problem.points - foot.point, foot.normal)
     out_fwd = problem.point_weight * np.maximum(signed, 0.0)
-    gap = pairs.goal - pairs.samples.point
-    d_back = pairs.weight * np.linalg.norm(gap, axis=1)
-    in_back = pairs.weight * np.maximum(-np.einsum("ij,ij->i", gap, pairs.samples.normal), 0.0)
+    d_back = pairs.weight * np.linalg.norm(pairs.goal - pairs.samples.point, axis=1)
     R1 = abs(surface.rows(foot))
     R2 = abs(surface.rows(pairs.samples))
     per_vertex = R1.T @ d_fwd + R2.T @ d_back
     out_vertex = R1.T @ out_fwd
-    in_vertex = R2.T @ in_back
     sizes = mesh.face_sizes
     inc = sp.csr_matrix((np.ones(len(mesh.corners)), (np.repeat(np.arange(mesh.n_faces), sizes), mesh.corners)),
                         shape=(mesh.n_faces, mesh.n_vertices))
-    return Residual(*(np.asarray(inc @ x).ravel() / sizes for x in (per_vertex, out_vertex, in_vertex)))
+    return Residual(np.asarray(inc @ per_vertex).ravel() / sizes, np.asarray(inc @ out_vertex).ravel() / sizes)
 
 
 def edge_rings(mesh: PolyMesh) -> list[tuple[int, list[int]]]:
@@ -124,9 +117,8 @@ def _inradius(mesh: PolyMesh, face: int) -> float:
 
 def candidates(mesh: PolyMesh, res: Residual, n_loops: int = 3) -> list[MeshOp]:
     """Structural ops aimed at the residual (module docstring): the ``n_loops`` edge rings with most total
-    residual and the densest one, an extrude of the face with most outward residual, an inward extrude of
-    the face with most inward residual (the surface pushed into a concavity it webs over), an inset of the
-    face with most residual, a bevel of the edge between the two faces with most residual where they bend."""
+    residual and the densest one, an extrude of the face with most outward residual, an inset of the face
+    with most residual, a bevel of the edge between the two faces with most residual where they bend."""
     ops: list[MeshOp] = []
     rings = edge_rings(mesh)
     if rings:
@@ -139,11 +131,6 @@ def candidates(mesh: PolyMesh, res: Residual, n_loops: int = 3) -> list[MeshOp]:
         size = _inradius(mesh, f)
         if size > 0:
             ops.append(Extrude(f, 0.25 * size))
-    if np.any(res.inward > 0):
-        f = int(np.argmax(res.inward))
-        size = _inradius(mesh, f)
-        if size > 0:
-            ops.append(Extrude(f, -0.25 * size))
     f = int(np.argmax(res.total))
     size = _inradius(mesh, f)
     if size > 0:
