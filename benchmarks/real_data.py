@@ -7,8 +7,9 @@ Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bo
 tube, a relief of three stacked extrusions), whichever are installed. pymeshlab's 10k-face bunny and cow
 and OpenSCAD's CSG, logo and GEB examples are left out here: their genus (estimated by ``target_genus``) is
 not 0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes).
-Then issue 13's genus targets (``genus_creases.genus_targets``: built nut, torus, ring, frame and the public
-genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
+A target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one
+closed cage webs between). Then issue 13's genus targets (``genus_creases.genus_targets``: built nut,
+torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
 run time. ``--jobs 2`` runs two targets at a time (one core each) and prints the same table in the same order.
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
@@ -32,6 +33,10 @@ import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from gsr_cad.atomic import write_text
 from gsr_cad.plots import run_length
@@ -80,6 +85,16 @@ def _ops(letters: str) -> str:
     return (letters if " " in letters else run_length(letters)) or "-"
 
 
+def parts(target) -> int:
+    """How many disjoint pieces (edge-connected components of its triangles) a mesh target has: one closed
+    cage must web between several, so its surface -> target distance cannot reach the pieces' own."""
+    f = np.asarray(target.faces)
+    n = len(target.points)
+    graph = sp.coo_matrix((np.ones(f.size), (f.ravel(), np.roll(f, 1, axis=1).ravel())), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return len(np.unique(labels[np.unique(f)]))
+
+
 def _front_point(target, point: dict, with_baseline: bool) -> str:
     """One front point, ``V: distance``, and with ``with_baseline`` the baseline's mean of both directions at
     the vertex count QuadriFlow gives nearest it (``/ -`` when none)."""
@@ -97,6 +112,9 @@ def _row(name: str, target, options: dict, args: argparse.Namespace) -> str:
     start = time.perf_counter()
     result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds, **options)
     m = result.metrics
+    pieces = parts(target)
+    if pieces > 1:
+        name += f" ({pieces} parts)"
     if options:
         name += (f" (genus {m['target_genus']} / {m['result_genus']}"
                  f"{'' if m['target_genus'] == m['result_genus'] else ' !'})")

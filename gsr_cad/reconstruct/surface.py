@@ -85,8 +85,8 @@ from ..ga.pareto import has_pymoo, non_dominated
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
-from ..geometry.surface_distance import (NearTriangles, area_samples, cloud_distance, mixed_mean_distance,
-                                         sampling_radius)
+from ..geometry.surface_distance import (NearTriangles, area_samples, cloud_distance, facet_triangles,
+                                         mixed_mean_distance, sampling_radius)
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -175,7 +175,8 @@ class _Pairs(NamedTuple):
 class SurfaceProblem:
     """The GA problem for one target: random ops, repair, the cost of a genome and the polish."""
 
-    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh, exact_back: bool = False):
+    def __init__(self, target: SurfaceTarget, config: SurfaceConfig, template: PolyMesh, exact_back: bool = False,
+                 exact_facets: bool = False):
         self.target = target
         self.exact_back = exact_back and target.faces is not None
         """Surface samples -> a mesh target's triangles (not its sampled points) in the fit (the refinement:
@@ -193,6 +194,10 @@ class SurfaceProblem:
         self._cloud_tree = cKDTree(cloud)
         self._cloud = cloud
         self._cloud_radius = sampling_radius(cloud, self._cloud_tree, CLOUD_SAMPLING_NEIGHBOURS)
+        self._on_facet = (on_facets(target, cloud) if exact_facets and target.faces is not None
+                          else np.zeros(len(cloud), dtype=bool))
+        """With ``exact_facets`` (the refinement), which fit points lie on a planar face of the part (see
+        :meth:`_back`; the search keeps the cheaper slack everywhere)."""
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
@@ -405,21 +410,32 @@ class SurfaceProblem:
         beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
         With ``exact_back`` (a fine mesh, whose chords are its surface) the closest points are on the
-        triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way.
+        triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way; so
+        are, with ``exact_facets``, the surface points whose nearest point lies on a planar face of the part
+        (:func:`on_facets`), which is its surface (else a bulge over a flat CAD face within the sampling radius went unseen).
         """
         if self.exact_back:
-            near_triangles = self.__dict__.get("_near_triangles")
-            if near_triangles is None:
-                near_triangles = self._near_triangles = NearTriangles(self.target.points, self.target.faces,
-                                                                      BACK_SAMPLES, seed=_TARGET_SEED)
-            d, near = near_triangles.closest(X)
+            d, near = self._near_triangles().closest(X)
             return d, near, np.ones(len(X))
         d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
         near = self._cloud[idx]
         gap = np.linalg.norm(near - X, axis=1)
         # pulled by the excess only: to the sphere of the nearest point's radius, not to the point
         share = np.divide(d, gap, out=np.zeros_like(d), where=gap > 0)
-        return d, X + share[:, None] * (near - X), (d > 0).astype(np.float64)
+        goal, weight = X + share[:, None] * (near - X), (d > 0).astype(np.float64)
+        flat = np.flatnonzero(self._on_facet[idx])
+        if flat.size:
+            d[flat], goal[flat] = self._near_triangles().closest(X[flat])
+            weight[flat] = 1.0
+        return d, goal, weight
+
+    def _near_triangles(self) -> NearTriangles:
+        """The mesh target's :class:`NearTriangles` (built on first use)."""
+        near = self.__dict__.get("_near")
+        if near is None:
+            near = self._near = NearTriangles(self.target.points, self.target.faces, BACK_SAMPLES,
+                                              seed=_TARGET_SEED)
+        return near
 
     def _pairs(self, surface: LimitSurface, hint: Hits | None = None) -> tuple[_Pairs, float]:
         """The correspondences of one polish round on ``surface`` and its symmetric cost: the target points'
@@ -867,6 +883,17 @@ def fit_points(target: SurfaceTarget, count: int) -> np.ndarray:
     return target.points[np.sort(np.random.default_rng(_TARGET_SEED).choice(n, count, replace=False))]
 
 
+def on_facets(target: SurfaceTarget, points: np.ndarray) -> np.ndarray:
+    """Per row of ``points`` (points of the mesh ``target``), True when it lies on a facet, a triangle of one of
+    the target's planar faces (:func:`~gsr_cad.geometry.surface_distance.facet_triangles`): there the
+    triangles are the surface itself, not chords of it, so a fit gives such a point no sampling slack."""
+    facet = facet_triangles(target.points, target.faces)
+    if not facet.any():
+        return np.zeros(len(points), dtype=bool)
+    hit = target.triangle_set.closest(points)
+    return facet[hit.triangle] & (hit.distance <= 1e-9 * target.diagonal)
+
+
 def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRIC_POINTS,
                    chunk: int = METRIC_CHUNK) -> np.ndarray:
     """The exact distance of every row of ``points`` to the limit surface, ``chunk`` rows at a time (bounded
@@ -1199,7 +1226,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     target = problem.target
     exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
     grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
-                            exact_back=exact)
+                            exact_back=exact, exact_facets=True)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
     start = grower.fit(grower.control_mesh(genome), 0)[1]
     if start <= goal and not pick:  # nothing to grow: the search's front and measure stand
