@@ -28,6 +28,8 @@ from .distance import chord_length_params, spline_foot_points
 _DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
 _JOINT_POINTS = 120  # joint refinement only for at most this many points (dense Jacobian; sparse data)
 _JOINT_RMS = 2e-3  # ... and near-exact data (RMS below this fraction of the diagonal): noisy fits gain nothing
+_FINER = (1, 2, 4, 8)  # extra control points of the fits whose parameters restart a joint step (sparse data)
+_EXACT = 1e-12  # an RMS below this fraction of the diagonal is exact: no further starts
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +196,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
     ``rtol`` (or after ``iterations`` rounds); distances are point-to-curve. Parameter correction is
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
     a third start; the best start after one solve is refined. ``joint``: small near-exact problems are then finished
-    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
+    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge), restarted
+    from the parameters of fits with more points while not exact (sparse data have local minima).
     ``bracket = (goal, hopeless)``: a tolerance search's question is only whether the max distance can be met, so
     the refinement stops once the max distance is within ``goal``, or above ``hopeless`` after six rounds.
     """
@@ -240,6 +243,39 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
         if warm_params is not None:  # the joint step finds the basin of its start: also try the cold starts
             cold = fit_curve(target, n_ctrl, degree, parametrization, iterations, lo, hi, rtol, None, closed, True)
             fit = cold if cold.rms < fit.rms else fit
+        else:
+            fit = _finer_starts(target, fit, degree, lo, hi, _EXACT * diag)
+    return fit
+
+
+def _joint_from(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: int, lo: np.ndarray | None,
+                hi: np.ndarray | None, closed: bool) -> CurveFit:
+    """One least-squares solve at ``params``, foot points, then the joint step."""
+    params = _ordered(np.array(params, dtype=np.float64), closed)
+    ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, closed=closed)
+    foot, dist = _project(ctrl, target, params, degree, closed)
+    return joint_refine(target, CurveFit(ctrl, foot, dist, closed), degree, lo, hi)
+
+
+def _finer_starts(target: np.ndarray, fit: CurveFit, degree: int, lo: np.ndarray | None, hi: np.ndarray | None,
+                  exact: float) -> CurveFit:
+    """The best of ``fit`` and joint fits started from the parameters of fits with more control points.
+
+    On sparse data the joint step from a uniform or chord-length start often ends in a local minimum of the
+    parametrisation (the data between uneven gaps are matched at shifted parameters). A curve with more points
+    absorbs that shift, so its foot points lie nearer the true ones: each of ``n + 1, n + 2, n + 4, n + 8`` points
+    (while the joint problem stays over-determined) is fitted cold, and its parameters start the ``n``-point
+    joint step. Stops once a fit is exact (RMS within ``exact``)."""
+    m, dim = target.shape
+    n, closed = len(fit.ctrl), fit.closed
+    free = (lambda k: k * dim + m) if closed else (lambda k: (k - 2) * dim + m - 2)
+    uniform = np.linspace(0.0, 1.0, m, endpoint=not closed)
+    for extra in _FINER:
+        if fit.rms <= exact or free(n + extra) >= m * dim:
+            break
+        finer = _joint_from(target, n + extra, uniform, degree, lo, hi, closed)
+        trial = _joint_from(target, n, finer.params, degree, lo, hi, closed)
+        fit = trial if trial.rms < fit.rms else fit
     return fit
 
 
