@@ -107,3 +107,19 @@ def test_sparse_fit_restarts_from_finer_fits_out_of_a_parametrisation_minimum():
     assert fit.rms / diag < 1e-12
     np.testing.assert_allclose(fit.ctrl, base.truth_ctrl, atol=1e-9)
     assert fit_curve(pts, 11, 3, iterations=100, joint=True).rms / diag > 1e-6  # one point fewer is not exact
+
+
+def test_tangent_refine_reaches_the_joint_optimum_of_noisy_data():
+    from gsr_cad.geometry.curvefit import joint_refine, tangent_refine
+
+    ctrl, spline = truth_curve(n=7, seed=5)
+    pts = spline(np.linspace(0, 1, 120))
+    diag = np.linalg.norm(np.ptp(pts, axis=0))
+    pts = pts + np.random.default_rng(1).normal(0.0, 0.007 * diag, pts.shape)
+    for closed in (False, True):
+        alternating = fit_curve(pts, 7, 3, iterations=25, closed=closed)
+        refined = tangent_refine(pts, alternating, 3)
+        reference = joint_refine(pts, alternating, 3, max_evaluations=400)  # dense Levenberg-Marquardt
+        assert refined.rms < alternating.rms * (1 - 1e-3)
+        assert refined.rms <= reference.rms * (1 + 1e-4)
+        assert refined.closed == closed

@@ -5,13 +5,15 @@ control points solve a linear least-squares problem: on an open curve the end po
 last data points (the paper's clamped template) and the interior is solved; on a closed (periodic) curve
 every control point is free. With ``parametrization="geometric"`` the parameters are refined by foot-point
 projection (alternating with the solve), which removes the paper's assumption that the data are evenly
-spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined. Large
-systems (many control points) are solved through their sparse banded normal equations.
+spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined, and
+:func:`tangent_refine` (Gauss-Newton with the parameters eliminated) finishes what alternating correction
+leaves. Large systems (many control points) are solved through their sparse banded normal equations.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import Literal
 
@@ -361,4 +363,49 @@ def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iteration
             since += 1
         if (goal is not None and best.distances.max() <= goal) or since >= 12:
             break
+    return best
+
+
+def tangent_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.ndarray | None = None,
+                   hi: np.ndarray | None = None, iterations: int = 40, rtol: float = 1e-6) -> CurveFit:
+    """Gauss-Newton on control points and parameters together, with the parameters eliminated: each round
+    solves the control points for the squared distances with each point's tangential component weighted by
+    ``lam`` (0: the normal distance only, the full Gauss-Newton step; 1: plain alternating correction), then
+    re-projects the foot points; ``lam`` shrinks while the RMS drops and grows when it does not (Levenberg-
+    Marquardt damping). Converges where alternating correction creeps, at the cost of a dense solve of the
+    coupled coordinates (for at most ``_DENSE_COLUMNS`` control points). Returns the best fit (never worse)."""
+    p = np.asarray(target, dtype=np.float64)
+    m, dim = p.shape
+    n, closed = len(fit.ctrl), fit.closed
+    inner = np.arange(n) if closed else np.arange(1, n - 1)
+    if n > _DENSE_COLUMNS or len(inner) * dim >= m * (dim - 1):
+        return fit
+    best, lam = fit, 0.1
+    for _ in range(iterations):
+        spline = bspline.make_spline(best.ctrl, degree, closed)
+        tangent = spline(best.params, 1)
+        unit = tangent / np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-300)
+        root = np.eye(dim)[None] - (1.0 - math.sqrt(lam)) * unit[:, :, None] * unit[:, None, :]  # (m, dim, dim)
+        cols, vals = _rows(n, best.params, degree, closed)
+        basis = _dense_basis(cols, vals, n)
+        rhs = p - (0.0 if closed else basis[:, [0, n - 1]] @ best.ctrl[[0, n - 1]])
+        design = np.einsum("iab,ik->iakb", root, basis[:, inner]).reshape(m * dim, len(inner) * dim)
+        sol = np.linalg.lstsq(design, np.einsum("iab,ib->ia", root, rhs).ravel(), rcond=None)[0]
+        ctrl = best.ctrl.copy()
+        ctrl[inner] = sol.reshape(len(inner), dim)
+        if not np.all(np.isfinite(ctrl)) or (lo is not None and hi is not None and (np.any(ctrl < lo) or
+                                                                                    np.any(ctrl > hi))):
+            lam = min(1.0, 4.0 * lam)
+            continue
+        params, dist = _project(ctrl, p, _ordered(best.params.copy(), closed), degree, closed)
+        trial = CurveFit(ctrl, params, dist, closed)
+        if trial.rms < best.rms:
+            gain = 1.0 - trial.rms / best.rms
+            best, lam = trial, max(1e-4, 0.3 * lam)
+            if gain < rtol:
+                break
+        elif lam >= 1.0:
+            break
+        else:
+            lam = min(1.0, 4.0 * lam)
     return best
