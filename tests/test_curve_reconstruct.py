@@ -102,3 +102,15 @@ def test_bad_config_and_input():
         reconstruct_curve(pts, preset="nonsense")
     with pytest.raises(InputError):
         reconstruct_curve(pts[:3])
+
+
+def test_noisy_winner_is_finished_without_leaving_the_data():
+    from gsr_cad.reconstruct.samples import get_sample
+
+    base = get_sample("bspline_05")  # its noisy 7-point winner: the unguarded Gauss-Newton finish made a loop
+    pts = np.asarray(base.points)
+    rng = np.random.default_rng([2, sum(map(ord, base.name)), 5])
+    pts = pts + rng.normal(0.0, 0.007 * np.linalg.norm(np.ptp(pts, axis=0)), pts.shape)
+    result = reconstruct_curve(pts, seed=2)
+    assert result.metrics["fit_to_data_max"] < 0.05
+    assert result.metrics["data_to_fit_max"] < 0.05

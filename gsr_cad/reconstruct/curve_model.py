@@ -198,8 +198,10 @@ class CurveModel:
         fit = fit_curve(pts, n, self.degree, parametrization="geometric", iterations=60, lo=self.lo, hi=self.hi,
                         rtol=1e-7, warm_params=quick.fit.params, closed=key == PERIODIC)
         limit = self.limit
-        if limit is None:  # alternating correction stops 1-10 % above the optimum of noisy data: finish it
-            fit = tangent_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)
+        if limit is None:  # alternating correction stops 1-10 % above the optimum of noisy data: finish it, unless
+            tuned = tangent_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi)  # the curve leaves the data for it
+            if self._measure(key, pts, tuned).curve_max <= self._measure(key, pts, fit).curve_max * (1 + 1e-3):
+                fit = tuned
 
         def rank(f: CurveFit) -> tuple[bool, float]:
             if limit is None:
