@@ -30,6 +30,7 @@ from .config import CurveConfig
 
 Key = tuple[int, int]  # a segment: search-point indices (first, last), last may exceed the count (wraps, closed)
 PERIODIC: Key = (-1, -1)  # the whole closed curve as one periodic segment
+SMALL_COUNT = 8  # a tolerance search tries every count below this: a B-spline's exact count may lie between misses
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,8 +255,8 @@ class CurveModel:
                 return self._bisect(key, limit, bad, good)
             bad = n = guess
             step = 1
-        while True:  # grow by half (or gallop from a guess) until met, then bisect between miss and hit
-            n = min(top, n + step if step else max(n + 1, int(math.ceil(n * 1.5))))
+        while True:  # grow by one, then by half (or gallop from a guess) until met, then bisect miss and hit
+            n = min(top, n + step if step else n + 1 if n < SMALL_COUNT else int(math.ceil(n * 1.5)))
             step *= 2
             if upto is not None and n > upto:
                 if bad < upto and not self.meets(key, upto, limit):
