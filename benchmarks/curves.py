@@ -44,7 +44,7 @@ from scipy.interpolate import make_lsq_spline, splev, splprep
 
 from gsr_cad.atomic import write_text
 from gsr_cad.errors import GsrError
-from gsr_cad.geometry.bspline import clamped_uniform_knots, sample_uniform
+from gsr_cad.geometry.bspline import clamped_uniform_knots, make_spline, sample_uniform
 from gsr_cad.geometry.distance import chord_length_params, point_to_polyline
 from gsr_cad.reconstruct.samples import CurveSample, get_sample, sample_names
 
@@ -152,7 +152,11 @@ def run_gsr(points: np.ndarray, preset: str, seed: int, budget: dict, **settings
     result = reconstruct_curve(points, preset=preset, seed=seed, **budget, **settings)
     ctrl = np.asarray(result.control_points)
     note = "interrupted" if result.interrupted else ""
-    return sample_uniform(ctrl, DENSE, result.degree), len(ctrl), note
+    if result.scheme != "bspline":
+        return sample_uniform(ctrl, DENSE, result.degree), len(ctrl), note
+    cfg = result.config  # the curve's own form: closed, corners (C0 joints of a segmented fit)
+    spline = make_spline(ctrl, result.degree, cfg["closed"], cfg["corners"])
+    return spline(np.linspace(0.0, 1.0, DENSE)), len(ctrl), note
 
 
 def measure(sample: CurveSample, method: str, fn: Callable[[], tuple[np.ndarray, int, str]], tol: float) -> Row:

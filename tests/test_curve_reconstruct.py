@@ -12,6 +12,7 @@ from gsr_cad.reconstruct.curve import CurveProblem, reconstruct_curve
 from gsr_cad.reconstruct.config import CurveConfig
 from gsr_cad.reconstruct.inputs import curve_target
 from gsr_cad.reconstruct.result import Result
+from gsr_cad.reconstruct.samples import get_sample
 
 FAST = dict(initial_population=200, population=40, generations=40, stall_generations=8)
 
@@ -102,3 +103,25 @@ def test_bad_config_and_input():
         reconstruct_curve(pts, preset="nonsense")
     with pytest.raises(InputError):
         reconstruct_curve(pts[:3])
+
+
+def test_noisy_winner_is_finished_without_leaving_the_data():
+    from gsr_cad.reconstruct.samples import get_sample
+
+    base = get_sample("bspline_05")  # its noisy 7-point winner: the unguarded Gauss-Newton finish made a loop
+    pts = np.asarray(base.points)
+    rng = np.random.default_rng([2, sum(map(ord, base.name)), 5])
+    pts = pts + rng.normal(0.0, 0.007 * np.linalg.norm(np.ptp(pts, axis=0)), pts.shape)
+    result = reconstruct_curve(pts, seed=2)
+    assert result.metrics["fit_to_data_max"] < 0.05
+    assert result.metrics["data_to_fit_max"] < 0.05
+
+
+def test_tolerance_search_finds_an_exact_count_between_misses():
+    """The bundled 5-point B-spline with ``max_distance``: 4 and 6 points miss the limit but 5 (and 7, which
+    holds 5's knots) are exact, so a search that grows 4 -> 6 and bisects returns 7."""
+    pts = get_sample("bspline_05").points
+    result = reconstruct_curve(pts, seed=0, max_distance=1e-3)
+    assert result.metrics["tolerance_met"]
+    assert result.metrics["n_control_points"] == 5
+    assert result.metrics["data_to_fit_max"] < 1e-9

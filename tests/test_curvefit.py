@@ -87,3 +87,39 @@ def test_joint_step_converges_where_alternating_correction_creeps():
     assert joint.rms <= alternating.rms
     assert joint.rms / diag < 1e-10 < alternating.rms / diag
     assert fit_curve(pts, 9, 3, iterations=100, joint=True).rms / diag < 1e-10
+
+
+def test_sparse_fit_restarts_from_finer_fits_out_of_a_parametrisation_minimum():
+    from gsr_cad.geometry.curvefit import CurveFit, _project, joint_refine
+    from gsr_cad.reconstruct.samples import get_sample
+
+    base = get_sample("bspline_12")  # a 12-point pigtail with a loop, 75 % of its samples removed at random
+    dense = np.asarray(base.points)
+    rng = np.random.default_rng([0, sum(map(ord, base.name)), 6])
+    inner = np.sort(rng.choice(np.arange(1, len(dense) - 1), size=48, replace=False))
+    pts = dense[np.concatenate([[0], inner, [len(dense) - 1]])]
+    diag = np.linalg.norm(np.ptp(pts, axis=0))
+    uniform = np.linspace(0.0, 1.0, len(pts))
+    ctrl = solve_interior(pts, 12, uniform, 3)
+    cold = joint_refine(pts, CurveFit(ctrl, *_project(ctrl, pts, uniform, 3, False)), 3)
+    assert cold.rms / diag > 1e-6  # the joint step alone ends in a local minimum of the parametrisation
+    fit = fit_curve(pts, 12, 3, iterations=100, joint=True)
+    assert fit.rms / diag < 1e-12
+    np.testing.assert_allclose(fit.ctrl, base.truth_ctrl, atol=1e-9)
+    assert fit_curve(pts, 11, 3, iterations=100, joint=True).rms / diag > 1e-6  # one point fewer is not exact
+
+
+def test_tangent_refine_reaches_the_joint_optimum_of_noisy_data():
+    from gsr_cad.geometry.curvefit import joint_refine, tangent_refine
+
+    ctrl, spline = truth_curve(n=7, seed=5)
+    pts = spline(np.linspace(0, 1, 120))
+    diag = np.linalg.norm(np.ptp(pts, axis=0))
+    pts = pts + np.random.default_rng(1).normal(0.0, 0.007 * diag, pts.shape)
+    for closed in (False, True):
+        alternating = fit_curve(pts, 7, 3, iterations=25, closed=closed)
+        refined = tangent_refine(pts, alternating, 3)
+        reference = joint_refine(pts, alternating, 3, max_evaluations=400)  # dense Levenberg-Marquardt
+        assert refined.rms < alternating.rms * (1 - 1e-3)
+        assert refined.rms <= reference.rms * (1 + 1e-4)
+        assert refined.closed == closed

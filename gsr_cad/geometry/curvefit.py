@@ -5,13 +5,15 @@ control points solve a linear least-squares problem: on an open curve the end po
 last data points (the paper's clamped template) and the interior is solved; on a closed (periodic) curve
 every control point is free. With ``parametrization="geometric"`` the parameters are refined by foot-point
 projection (alternating with the solve), which removes the paper's assumption that the data are evenly
-spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined. Large
-systems (many control points) are solved through their sparse banded normal equations.
+spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined, and
+:func:`tangent_refine` (Gauss-Newton with the parameters eliminated) finishes what alternating correction
+leaves. Large systems (many control points) are solved through their sparse banded normal equations.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import Literal
 
@@ -28,6 +30,8 @@ from .distance import chord_length_params, spline_foot_points
 _DENSE_COLUMNS = 64  # up to this many unknowns the normal matrix is factored densely
 _JOINT_POINTS = 120  # joint refinement only for at most this many points (dense Jacobian; sparse data)
 _JOINT_RMS = 2e-3  # ... and near-exact data (RMS below this fraction of the diagonal): noisy fits gain nothing
+_FINER = (1, 2, 4, 8)  # extra control points of the fits whose parameters restart a joint step (sparse data)
+_EXACT = 1e-12  # an RMS below this fraction of the diagonal is exact: no further starts
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +198,8 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
     ``rtol`` (or after ``iterations`` rounds); distances are point-to-curve. Parameter correction is
     start-dependent, so ``warm_params`` (e.g. those of a fit with one control point fewer) are tried as
     a third start; the best start after one solve is refined. ``joint``: small near-exact problems are then finished
-    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge).
+    by :func:`joint_refine` (alternating correction creeps; sparse data need the joint step to converge), restarted
+    from the parameters of fits with more points while not exact (sparse data have local minima).
     ``bracket = (goal, hopeless)``: a tolerance search's question is only whether the max distance can be met, so
     the refinement stops once the max distance is within ``goal``, or above ``hopeless`` after six rounds.
     """
@@ -240,6 +245,39 @@ def fit_curve(target: np.ndarray, n_ctrl: int, degree: int = 3,
         if warm_params is not None:  # the joint step finds the basin of its start: also try the cold starts
             cold = fit_curve(target, n_ctrl, degree, parametrization, iterations, lo, hi, rtol, None, closed, True)
             fit = cold if cold.rms < fit.rms else fit
+        else:
+            fit = _finer_starts(target, fit, degree, lo, hi, _EXACT * diag)
+    return fit
+
+
+def _joint_from(target: np.ndarray, n_ctrl: int, params: np.ndarray, degree: int, lo: np.ndarray | None,
+                hi: np.ndarray | None, closed: bool) -> CurveFit:
+    """One least-squares solve at ``params``, foot points, then the joint step."""
+    params = _ordered(np.array(params, dtype=np.float64), closed)
+    ctrl = solve_interior(target, n_ctrl, params, degree, lo, hi, closed=closed)
+    foot, dist = _project(ctrl, target, params, degree, closed)
+    return joint_refine(target, CurveFit(ctrl, foot, dist, closed), degree, lo, hi)
+
+
+def _finer_starts(target: np.ndarray, fit: CurveFit, degree: int, lo: np.ndarray | None, hi: np.ndarray | None,
+                  exact: float) -> CurveFit:
+    """The best of ``fit`` and joint fits started from the parameters of fits with more control points.
+
+    On sparse data the joint step from a uniform or chord-length start often ends in a local minimum of the
+    parametrisation (the data between uneven gaps are matched at shifted parameters). A curve with more points
+    absorbs that shift, so its foot points lie nearer the true ones: each of ``n + 1, n + 2, n + 4, n + 8`` points
+    (while the joint problem stays over-determined) is fitted cold, and its parameters start the ``n``-point
+    joint step. Stops once a fit is exact (RMS within ``exact``)."""
+    m, dim = target.shape
+    n, closed = len(fit.ctrl), fit.closed
+    free = (lambda k: k * dim + m) if closed else (lambda k: (k - 2) * dim + m - 2)
+    uniform = np.linspace(0.0, 1.0, m, endpoint=not closed)
+    for extra in _FINER:
+        if fit.rms <= exact or free(n + extra) >= m * dim:
+            break
+        finer = _joint_from(target, n + extra, uniform, degree, lo, hi, closed)
+        trial = _joint_from(target, n, finer.params, degree, lo, hi, closed)
+        fit = trial if trial.rms < fit.rms else fit
     return fit
 
 
@@ -325,4 +363,49 @@ def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iteration
             since += 1
         if (goal is not None and best.distances.max() <= goal) or since >= 12:
             break
+    return best
+
+
+def tangent_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.ndarray | None = None,
+                   hi: np.ndarray | None = None, iterations: int = 40, rtol: float = 1e-6) -> CurveFit:
+    """Gauss-Newton on control points and parameters together, with the parameters eliminated: each round
+    solves the control points for the squared distances with each point's tangential component weighted by
+    ``lam`` (0: the normal distance only, the full Gauss-Newton step; 1: plain alternating correction), then
+    re-projects the foot points; ``lam`` shrinks while the RMS drops and grows when it does not (Levenberg-
+    Marquardt damping). Converges where alternating correction creeps, at the cost of a dense solve of the
+    coupled coordinates (for at most ``_DENSE_COLUMNS`` control points). Returns the best fit (never worse)."""
+    p = np.asarray(target, dtype=np.float64)
+    m, dim = p.shape
+    n, closed = len(fit.ctrl), fit.closed
+    inner = np.arange(n) if closed else np.arange(1, n - 1)
+    if n > _DENSE_COLUMNS or len(inner) * dim >= m * (dim - 1):
+        return fit
+    best, lam = fit, 0.1
+    for _ in range(iterations):
+        spline = bspline.make_spline(best.ctrl, degree, closed)
+        tangent = spline(best.params, 1)
+        unit = tangent / np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-300)
+        root = np.eye(dim)[None] - (1.0 - math.sqrt(lam)) * unit[:, :, None] * unit[:, None, :]  # (m, dim, dim)
+        cols, vals = _rows(n, best.params, degree, closed)
+        basis = _dense_basis(cols, vals, n)
+        rhs = p - (0.0 if closed else basis[:, [0, n - 1]] @ best.ctrl[[0, n - 1]])
+        design = np.einsum("iab,ik->iakb", root, basis[:, inner]).reshape(m * dim, len(inner) * dim)
+        sol = np.linalg.lstsq(design, np.einsum("iab,ib->ia", root, rhs).ravel(), rcond=None)[0]
+        ctrl = best.ctrl.copy()
+        ctrl[inner] = sol.reshape(len(inner), dim)
+        if not np.all(np.isfinite(ctrl)) or (lo is not None and hi is not None and (np.any(ctrl < lo) or
+                                                                                    np.any(ctrl > hi))):
+            lam = min(1.0, 4.0 * lam)
+            continue
+        params, dist = _project(ctrl, p, _ordered(best.params.copy(), closed), degree, closed)
+        trial = CurveFit(ctrl, params, dist, closed)
+        if trial.rms < best.rms:
+            gain = 1.0 - trial.rms / best.rms
+            best, lam = trial, max(1e-4, 0.3 * lam)
+            if gain < rtol:
+                break
+        elif lam >= 1.0:
+            break
+        else:
+            lam = min(1.0, 4.0 * lam)
     return best
