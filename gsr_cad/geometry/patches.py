@@ -35,7 +35,8 @@ points along the face normal (outwards on a closed, outward-oriented mesh).
 
 Deviations are distances from exact limit points (the level-``L + 1`` grid, every patch) to the patches:
 ``|patch(u, v) - limit(u, v)|`` on exact patches, the distance to a Gauss-Newton foot point (started at the
-point's own graded parameters, kept inside the patch, so never an underestimate) on fitted ones. Near an
+point's own graded parameters and at the nearest of a finer grid of patch points, kept inside the patch, so
+never an underestimate) on fitted ones. Near an
 extraordinary vertex the limit's parametrization is not polynomial, so a parametric gap would mostly
 measure tangential sliding (it shrinks only by the subdominant eigenvalue per level), not shape.
 """
@@ -417,28 +418,23 @@ def _fit(mesh: PolyMesh, boundary: str, fit: np.ndarray, fitted: np.ndarray, spa
     return poles
 
 
-def _project(poles: np.ndarray, points: np.ndarray, start: tuple[np.ndarray, np.ndarray],
-             iterations: int = 8) -> np.ndarray:
-    """Distance from every point ``points[p, i, j]`` (the limit at grid point ``(i, j)`` of patch ``p``) to
-    patch ``p`` (``poles[p]``, clamped uniform knots): Gauss-Newton foot points from the parameters
-    ``start`` (``(U, V)``, each shaped like ``points[..., 0]``), kept in [0, 1]^2 (a foot point beyond the
-    patch's edge would lie on its neighbour, so clamping can only overestimate)."""
-    n_p, m = points.shape[0], points.shape[1]
+def _foot_distances(poles: np.ndarray, x: np.ndarray, u: np.ndarray, v: np.ndarray, iterations: int) -> np.ndarray:
+    """Distances ``(p, k)`` from points ``x`` ``(p, k, 3)`` to patches ``poles`` by Gauss-Newton from ``(u, v)``
+    ``(p, k)``, parameters kept in [0, 1]^2: the least distance to any iterate (each a point on the patch)."""
+    n_p, k = u.shape
     n = poles.shape[1]
-    x = points.reshape(n_p, m * m, 3)
-    u = start[0].reshape(n_p, m * m).copy()
-    v = start[1].reshape(n_p, m * m).copy()
 
     def basis(t: np.ndarray, order: int) -> np.ndarray:
-        return bspline.derivative_basis_matrix(n, t.ravel(), DEGREE, order).reshape(n_p, m * m, n)
+        return bspline.derivative_basis_matrix(n, t.ravel(), DEGREE, order).reshape(n_p, k, n)
 
-    def surface(bu: np.ndarray, bv: np.ndarray) -> np.ndarray:
-        return _surface_at(poles, bu, bv)
-
-    for _ in range(iterations):
+    best = np.full((n_p, k), np.inf)
+    for step in range(iterations + 1):
         bu, bv = basis(u, 0), basis(v, 0)
-        r = x - surface(bu, bv)
-        su, sv = surface(basis(u, 1), bv), surface(bu, basis(v, 1))
+        r = x - _surface_at(poles, bu, bv)
+        best = np.minimum(best, np.linalg.norm(r, axis=-1))
+        if step == iterations:
+            break
+        su, sv = _surface_at(poles, basis(u, 1), bv), _surface_at(poles, bu, basis(v, 1))
         a, b, c = (su * su).sum(-1), (su * sv).sum(-1), (sv * sv).sum(-1)
         ru, rv = (su * r).sum(-1), (sv * r).sum(-1)
         det = a * c - b * b
@@ -446,7 +442,29 @@ def _project(poles: np.ndarray, points: np.ndarray, start: tuple[np.ndarray, np.
         det = np.where(ok, det, 1.0)
         u = np.clip(u + np.where(ok, (c * ru - b * rv) / det, 0.0), 0.0, 1.0)
         v = np.clip(v + np.where(ok, (a * rv - b * ru) / det, 0.0), 0.0, 1.0)
-    return np.linalg.norm(x - surface(basis(u, 0), basis(v, 0)), axis=-1).reshape(n_p, m, m)
+    return best
+
+
+def _project(poles: np.ndarray, points: np.ndarray, start: tuple[np.ndarray, np.ndarray],
+             iterations: int = 8) -> np.ndarray:
+    """Distance from every point ``points[p, i, j]`` (the limit at grid point ``(i, j)`` of patch ``p``) to
+    patch ``p`` (``poles[p]``, clamped uniform knots): Gauss-Newton foot points (kept in [0, 1]^2: a foot point
+    beyond the patch's edge would lie on its neighbour, so clamping can only overestimate) from the parameters
+    ``start`` (``(U, V)``, each shaped like ``points[..., 0]``) and from the nearest of a twice as fine grid of
+    patch points (a strongly distorted patch leads Gauss-Newton astray from ``start``); the lesser distance."""
+    from scipy.spatial import cKDTree
+
+    n_p, m = points.shape[0], points.shape[1]
+    x = points.reshape(n_p, m * m, 3)
+    shape = (n_p, m * m)
+    dist = _foot_distances(poles, x, start[0].reshape(shape).copy(), start[1].reshape(shape).copy(), iterations)
+    g = np.linspace(0.0, 1.0, 2 * m - 1)
+    b = bspline.basis_matrix(poles.shape[1], g)
+    dense = np.einsum("ia,pabc,jb->pijc", b, poles, b, optimize=True).reshape(n_p, -1, 3)
+    near = np.stack([cKDTree(dense[p]).query(x[p])[1] for p in range(n_p)])
+    u, v = g[near // g.size], g[near % g.size]
+    dist = np.minimum(dist, _foot_distances(poles, x, u, v, iterations))
+    return dist.reshape(n_p, m, m)
 
 
 def limit_patches(mesh: PolyMesh, tolerance_rel: float = 1e-4, boundary: Boundary = "all",
