@@ -317,7 +317,7 @@ def _side_grading(mesh: PolyMesh, boundary: str, grids: np.ndarray, fitted: np.n
     vertex, ratio = vertex[ok], np.clip(ratio[ok], 0.5, 1.0)
     order = np.lexsort((ratio, vertex))
     vertex, ratio = vertex[order], ratio[order]
-    first = np.flatnonzero(np.r_[True, vertex[1:] != vertex[:-1]])
+    first = np.flatnonzero(np.r_[True, vertex[1:] != vertex[:-1]]) if vertex.size else np.zeros(0, dtype=np.int64)
     count = np.diff(np.r_[first, vertex.size])
     gamma = np.ones(t1.n_vertices)
     gamma[vertex[first]] = 0.5 * (ratio[first + (count - 1) // 2] + ratio[first + count // 2])
