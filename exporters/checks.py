@@ -145,7 +145,8 @@ def check_step_surface(step: Path, host: str, result: Any, path: Path | None = N
                        stated: dict[str, Any] | None = None) -> list[Check]:
     """Compare the shape in the STEP file ``step`` with ``result``'s limit surface: one face per patch, for a
     closed mesh one valid solid of positive volume, and the distance from exact limit points (a grid one
-    level finer than the fit, every patch) to the face they belong to, projected by OCCT, within the stated
+    level finer than the fit, every patch) to the face they belong to, projected by OCCT (its global search and
+    a search from the previous point's foot point, the nearer: each is a point on the face), within the stated
     deviation (``stated``, default the figures of our own fit). Checks are reported under ``path``."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepCheck import BRepCheck_Analyzer
@@ -194,9 +195,16 @@ def check_step_surface(step: Path, host: str, result: Any, path: Path | None = N
                                     f"two faces lie on patch {p}: the faces do not match the patches")]
         seen.add(p)
         analysis = ShapeAnalysis_Surface(surface)
+        previous = None
         for x, y, z in grids[p].reshape(-1, 3).tolist():
-            analysis.ValueOfUV(gp_Pnt(x, y, z), 1e-10 * patches.diagonal)
+            point, precision = gp_Pnt(x, y, z), 1e-10 * patches.diagonal
+            uv = analysis.ValueOfUV(point, precision)
             gap = analysis.Gap()
+            if previous is not None:  # OCCT's global search can miss the foot point: also from the last one
+                near = analysis.NextValueOfUV(previous, point, precision, -1.0)
+                if analysis.Gap() < gap:
+                    uv, gap = near, analysis.Gap()
+            previous = uv
             worst = max(worst, gap) if math.isfinite(gap) else math.inf
             total += gap
             count += 1

@@ -215,6 +215,21 @@ def test_gsr_validate_passes_then_reports_a_damaged_file(gsr, exported, tmp_path
 
 
 
+def _validate_in_every_host(gsr, result: Result, out, stem: str) -> None:
+    """Save ``result``, export it for every host and assert that `gsr validate` passes every check, Blender,
+    OpenSCAD, FreeCAD and OCP among the hosts."""
+    for host in ("blender", "openscad", "freecad"):
+        _need(host)
+    result.save(out)
+    names = ["blender", "scad", "fcmacro", "step"] + (["cadquery"] if hosts.cadquery_python() else [])
+    export_all(result, out, names, stem=stem)
+    run = gsr("validate", out)
+    assert run.code == 0, run.out
+    rows = run.out.splitlines()[1:-1]
+    assert {row.split()[1] for row in rows} >= {"blender", "openscad", "freecad", "OCP"}, run.out
+    assert all(" pass " in row for row in rows), run.out
+
+
 # a tunnel through the cube, its top rim infinitely sharp (a straight crease loop through regular vertices, so
 # the patches there are exact) and one semi-sharp edge down the tunnel
 HOLED_CREASED = (Inset(4, 0.25), Inset(5, 0.25), Hole(4, 5), Crease(12, 10.0), Crease(16, 10.0), Crease(23, 10.0),
@@ -226,19 +241,10 @@ HOLED_CREASED = (Inset(4, 0.25), Inset(5, 0.25), Hole(4, 5), Crease(12, 10.0), C
 @pytest.mark.freecad
 @pytest.mark.xdist_group("blender")
 def test_gsr_validate_checks_a_creased_result_with_a_hole_in_every_host(gsr, tmp_path):
-    for host in ("blender", "openscad", "freecad"):
-        _need(host)
     result = surface_result(HOLED_CREASED)
     mesh = result.control_mesh
     assert mesh.topology.euler_characteristic == 0 and len(mesh.creases) == 5
-    result.save(tmp_path)
-    names = ["blender", "scad", "fcmacro", "step"] + (["cadquery"] if hosts.cadquery_python() else [])
-    export_all(result, tmp_path, names, stem="holed")
-    run = gsr("validate", tmp_path)
-    assert run.code == 0, run.out
-    rows = run.out.splitlines()[1:-1]
-    assert {row.split()[1] for row in rows} >= {"blender", "openscad", "freecad", "OCP"}, run.out
-    assert all(" pass " in row for row in rows), run.out
+    _validate_in_every_host(gsr, result, tmp_path, "holed")
     macro = (tmp_path / "holed.FCMacro").read_text(encoding="utf-8")
     assert "{'op': 'hole', 'face_a': 4, 'face_b': 5}" in macro and "{'op': 'crease', 'edge': 12, 'sharpness': 10.0}" in macro
 
@@ -288,3 +294,18 @@ def test_blender_curve_script_rebuilds_history_and_the_exact_bezier_curve(tmp_pa
     edited.write_text(text.replace(record, record + "0.25 + "), encoding="utf-8")
     got = statuses(exporter.validate(edited, result))
     assert got[segments] == "FAIL" and got["history polygons"] == "FAIL"  # judged, not a crashed script
+
+
+@pytest.mark.blender
+@pytest.mark.openscad
+@pytest.mark.freecad
+@pytest.mark.xdist_group("blender")
+def test_gsr_validate_passes_a_random_creased_genome_with_holes_in_every_host(gsr, tmp_path):
+    """A random creased genome with a hole (the Blender run's generator; darts and crease corners, fitted STEP
+    patches within 1e-4): every host's file passes `gsr validate`."""
+    from test_blender_subsurf import creased_genomes
+
+    result = surface_result(creased_genomes()[4], size=1.0, center=(0.0, 0.0, 0.0))
+    mesh = result.control_mesh
+    assert mesh.topology.euler_characteristic < 2 and mesh.creases
+    _validate_in_every_host(gsr, result, tmp_path, "random")
