@@ -349,11 +349,13 @@ class GeneticAlgorithm:
         self._commit(self.generation + 1, genomes, all_costs)
 
     def _commit(self, generation: int, genomes: list[GenomeT], costs: np.ndarray) -> None:
-        """Install the next population (sorted), after the optional memetic polish of its best."""
+        """Install the next population (sorted), after the optional memetic polish of its best (skipped once the
+        best is within the threshold: the run ends with this generation)."""
         order = np.argsort(costs, kind="stable")
         genomes, costs = [genomes[i] for i in order], np.asarray(costs, dtype=float)[order]
         k = self.config.local_search_every
-        if k > 0 and generation % k == 0 and genomes and self._local_search(genomes, costs):
+        if (k > 0 and generation % k == 0 and genomes and not costs[0] <= self.config.threshold
+                and self._local_search(genomes, costs)):
             order = np.argsort(costs, kind="stable")
             genomes, costs = [genomes[i] for i in order], costs[order]
         self.population, self.costs, self.generation = genomes, costs, generation
