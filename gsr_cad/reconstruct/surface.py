@@ -627,6 +627,32 @@ class SurfaceProblem:
         except GsrError:
             return genome
 
+    def grouped(self, genome: tuple, deadline: float | None = None) -> tuple:
+        """``genome`` as a designer writes it: its structural ops first, then one move per vertex to the same
+        control mesh, when those ops build its connectivity without the moves between them and every move
+        replays in one pass (:func:`_ordered_moves`); ``genome`` itself otherwise, when that is longer, or
+        when the moves (timed by one of them) are predicted to end after ``deadline`` (a ``perf_counter`` value).
+        """
+        genome = tuple(genome)
+        core = tuple(op for op in genome if not isinstance(op, TranslateVertex))
+        if genome[:len(core)] == core:
+            return genome
+        want = self.control_mesh(genome)
+        kept, state = self.walk(core)
+        if len(kept) != len(core) or state.topology_key != want.topology_key:
+            return genome
+        if deadline is not None:
+            start = time.perf_counter()
+            with contextlib.suppress(OpError):  # about what each move costs
+                TranslateVertex(0, (0.0, 0.0, 0.0)).apply(state)
+            if time.perf_counter() + 2 * state.n_vertices * (time.perf_counter() - start) > deadline:
+                return genome
+        moves, reached, refused = _ordered_moves(state, want.vertices, 1e-12 * self.diag)
+        if (refused or len(core) + len(moves) > len(genome)
+                or np.abs(reached.vertices - want.vertices).max() > 1e-12 * self.diag):
+            return genome
+        return core + moves
+
     def merged(self, genome: tuple) -> tuple:
         """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
         net move), run by run where the result still replays to the same mesh (within 1e-12 of the
@@ -1126,7 +1152,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         if growth is not None:
             final, pareto = growth.genome, growth.front
     if final and not hurry():
-        final = problem.pruned(problem.merged(final))
+        late = None if deadline is None else deadline - tail(problem.control_mesh(final).n_vertices)
+        final = problem.pruned(problem.grouped(problem.merged(final), late))
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
