@@ -101,7 +101,7 @@ class _Reached(Exception):
 class _CostFn:
     """Picklable ``problem.cost`` wrapper; in the engine's own process it also records each result as it
     comes, so costs computed before a Ctrl-C are not lost, and it ends a batch once the time budget is spent
-    (after at least one cost is known), so a slow first population cannot overrun ``max_seconds``, and as soon
+    (after at least one finite cost is known), so a slow first population cannot overrun ``max_seconds``, and as soon
     as a cost reaches ``threshold`` (the rest of the batch would not be kept, :meth:`GeneticAlgorithm._evaluate`)."""
 
     def __init__(self, problem: Problem, sink: dict[GenomeT, float]) -> None:
@@ -111,6 +111,7 @@ class _CostFn:
         self.should_stop: Callable[[], bool] | None = None
         self.out_of_time: Callable[[], bool] | None = None
         self.threshold: float | None = None
+        self.finite = False  # whether a finite cost is known (only then may the time budget end a batch)
 
     def stopping(self) -> bool:
         """Whether the run was asked to stop (polled by in-process evaluators between items)."""
@@ -119,18 +120,19 @@ class _CostFn:
     def __call__(self, genome: GenomeT) -> float:
         if self.stopping():
             raise KeyboardInterrupt
-        if self.out_of_time is not None and self.sink and os.getpid() == self.owner and self.out_of_time():
+        if self.out_of_time is not None and self.finite and os.getpid() == self.owner and self.out_of_time():
             raise _OutOfTime
         c = _clean_cost(self.problem.cost(genome))
         if self.sink is not None and os.getpid() == self.owner:
             self.sink[genome] = c
+            self.finite = self.finite or math.isfinite(c)
             if self.threshold is not None and c <= self.threshold:
                 raise _Reached
         return c
 
     def __getstate__(self) -> dict[str, Any]:
         return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None, "out_of_time": None,
-                "threshold": None}
+                "threshold": None, "finite": False}
 
 
 class GeneticAlgorithm:
@@ -208,6 +210,7 @@ class GeneticAlgorithm:
         budget = self.config.max_seconds
         self._cost_fn.out_of_time = None if budget is None else (lambda: self._elapsed() >= budget)
         self._cost_fn.threshold = self.config.threshold
+        self._cost_fn.finite = any(math.isfinite(c) for c in self.memo.values())
         interrupted = False
         if checkpoint is not None:
             inner = on_generation
