@@ -1217,11 +1217,12 @@ POST_SHARE = 0.25
 _MIN_SEARCH = 0.01  # the search gets at least this share of max_seconds, whatever the preparation took
 _POST_RESERVE = 0.1  # share of max_seconds left after the search when there is no refinement (polish, metrics)
 TAIL_MARGIN = 1.2
-TAIL_GROWTH = 0.6
+TAIL_GROWTH = 0.4
 """The final metrics of a cage are predicted to take ``TAIL_MARGIN`` times the search winner's (per target point)
 times the growth in control vertices to this power, so the refinement leaves that much time before the deadline.
-On the 56k-triangle bunny under load: 11 s at 16 control vertices, 10 s at 84; elsewhere 29 s at 386 and 129 s
-at 1538: a large share does not grow with the cage (the target's side), the rest about linearly."""
+On the 56k-triangle bunny: 8.7 s at 16 control vertices and 6.6 s at 296 (load 5-7), 11-15 s at 16 and 10-17 s
+at 84 (load 8-10); elsewhere, under load 8-10, 29 s at 386 and 129 s at 1538: most of it does not grow with the
+cage (the target's side) until the cage is large."""
 
 
 class _Tail:
