@@ -237,7 +237,8 @@ def markdown(rows: list[Row], args: argparse.Namespace, load: float, interrupted
         searched = run_length(r.searched_ops) if r.searched_ops != r.ops else "same"
         lines.append(f"| {r.sample} | {r.kind} | {_g(r.mean)} | {_g(r.max)} | {_g(r.back)} | {_g(r.mixed)} | "
                      f"{r.generations} | "
-                     f"{r.evaluations} | {r.seconds:.1f} | {r.cpu:.1f} | {r.found} | {run_length(r.ops)} ({r.true_ops or '-'}) | "
+                     f"{r.evaluations} | {r.seconds:.1f} | {r.cpu:.1f} | {r.found} | "
+                     f"{run_length(r.ops)} ({r.true_ops or '-'}) | "
                      f"{searched} | {_g(r.before)} -> {_g(r.mean)} ({r.polish_seconds:.2f} s) | {paper} |")
     tail = [*ablation_lines(list(ablation)), "", "Done-when targets (issues 4 and 11):", "", *checks(rows), ""]
     return "\n".join(head + lines + tail)

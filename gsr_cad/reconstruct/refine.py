@@ -260,6 +260,12 @@ class _Fitter:
         n = mesh.n_vertices
         return self.deadline - self.timing.predict("commit", n) - (self.tail(n) if self.tail is not None else 0.0)
 
+    def late(self, mesh: PolyMesh) -> float | None:
+        """The deadline of the work on ``mesh`` after its fit (its commit): the caller's tail kept free."""
+        if self.deadline is None:
+            return None
+        return self.deadline - (self.tail(mesh.n_vertices) if self.tail is not None else 0.0)
+
     def fits_in_time(self, mesh: PolyMesh, rounds: int, extra: str | None = None) -> bool:
         """Whether a fit of ``mesh`` (after ``extra`` work of that kind, e.g. its residual) can do
         ``min(rounds, MIN_ROUNDS)`` rounds before its deadline."""
@@ -364,7 +370,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
             if c < MIN_GAIN * cost:
                 chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
-                                                                 b.with_vertices(v), c, cost))
+                                                                 b.with_vertices(v), c, cost, _fit.late(b)))
                 if chosen is not None:
                     break
         if chosen is None:
@@ -380,20 +386,20 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
 
 
 def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,
-            fitted: PolyMesh, c: float, cost: float) -> tuple | None:
+            fitted: PolyMesh, c: float, cost: float, deadline: float | None = None) -> tuple | None:
     """A level from the fitted cage of ``ops``: ``(ops, the new base, its state, the level's genome, the cage it
     replays to, its distance)``. The ops replay on the base's geometry (``a``, when they apply there) or
     after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
     moves refuse, the cage the others reach stands if it still gains (below ``MIN_GAIN`` of ``cost``); else
     None."""
     if a is not None:
-        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices)
+        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices, deadline)
         if not left:
             return ops, base + ops, a, step, fitted, c
     prefix, state = _after(problem, full, ops)
     if state is None:
         return None
-    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices)
+    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline)
     if left:
         try:
             c = problem.fit(reached, 0)[1]
@@ -443,7 +449,7 @@ def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tup
         a = _apply(ops, base_state)
         a = a if a is not None and a.topology_key == b.topology_key else None
         chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
-                                                         b.with_vertices(v), c, cost))
+                                                         b.with_vertices(v), c, cost, _fit.late(b)))
         if chosen is not None:
             return chosen
     return None
@@ -478,10 +484,11 @@ def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
     return prefix, _apply(ops, problem.control_mesh(prefix))
 
 
-def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray,
+                   deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
     """``base`` (which builds ``state``) followed by the moves towards ``vertices`` that replay, the cage they
-    reach and how many vertices did not get there."""
-    moves, reached, refused = problem._moves(state, vertices)
+    reach and how many vertices did not get there (no staged attempt of the moves starting after ``deadline``)."""
+    moves, reached, refused = problem._moves(state, vertices, deadline)
     return base + moves, reached, refused
 
 

@@ -534,7 +534,7 @@ class SurfaceProblem:
                 break
         return best_v, best_cost
 
-    def _moves(self, state: PolyMesh, goal: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+    def _moves(self, state: PolyMesh, goal: np.ndarray, deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
         """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
         vertices did not get there)``.
 
@@ -544,7 +544,8 @@ class SurfaceProblem:
         already there: one op each, a few more only for the vertices that need them); failing that, every
         vertex follows the straight path between the two meshes in stages; failing that too, the first
         attempt's partial moves stand. Staged moves are then merged vertex by vertex where the history still
-        replays (:func:`_compact_moves`).
+        replays (:func:`_compact_moves`). No staged attempt starts after ``deadline`` (a
+        ``perf_counter`` value).
         """
         tol = 1e-12 * self.diag
         goal = np.asarray(goal, dtype=np.float64)
@@ -554,6 +555,8 @@ class SurfaceProblem:
         for origin, ops in ((current, moves), (state, ())):
             start = origin.vertices
             for stages in (2, 4, 8, 16):
+                if deadline is not None and time.perf_counter() >= deadline:  # no staged attempt starts after it
+                    return moves, current, refused
                 trial, steps = origin, list(ops)
                 for k in range(1, stages + 1):
                     stage, trial, left = _ordered_moves(trial, start + (k / stages) * (goal - start), tol)
@@ -1151,8 +1154,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         growth = _refined(problem, final, goal, until, pareto, should_stop, config.max_distance is not None, tail)
         if growth is not None:
             final, pareto = growth.genome, growth.front
-    if final and not hurry():
-        late = None if deadline is None else deadline - tail(problem.control_mesh(final).n_vertices)
+    late = None if deadline is None or not final else deadline - tail(problem.control_mesh(final).n_vertices)
+    if final and not hurry() and (late is None or time.perf_counter() < late):
         final = problem.pruned(problem.grouped(problem.merged(final), late))
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
