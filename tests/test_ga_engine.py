@@ -509,3 +509,23 @@ def test_report_and_result_fields():
     result = GeneticAlgorithm(Seq(offset=0.25), small(generations=2), seed=18).run()
     assert set(result.history[0]) == {"generation", "best_fitness", "mean_fitness", "seconds"}
     assert result.seconds >= result.history[-1]["seconds"] >= result.history[0]["seconds"] >= 0
+
+
+def test_a_batch_ends_at_its_first_cost_within_the_threshold():
+    # the target first in the initial population: the rest of it is never evaluated, and a pool (which
+    # computes the whole batch) gives the same run
+    problem = Seeded()
+    result = GeneticAlgorithm(problem, small("plus", threshold=0.0), seed=3).run()
+    assert result.stop_reason == "threshold" and result.best_genome == TARGET
+    assert problem.calls == [TARGET] and result.evaluations == 1 and len(result.history) == 1
+    with ProcessPoolEvaluator(max_workers=2) as pool:
+        pooled = GeneticAlgorithm(Seeded(), small("plus", threshold=0.0), seed=3, evaluator=pool).run()
+    assert pooled.evaluations == 1 and strip_seconds(pooled.history) == strip_seconds(result.history)
+    # a threshold met later in a batch: the steady-state population keeps its size
+    seen_problem = Seq()
+    ga = GeneticAlgorithm(seen_problem, small(threshold=4.0, generations=200), seed=7)
+    seen, cb = snapshots(ga)
+    r = ga.run(cb)
+    assert r.stop_reason == "threshold" and r.best_cost <= 4.0
+    assert all(len(pop) == 20 for _, pop, _ in seen)
+    assert seen_problem.calls[-1] == r.best_genome  # nothing evaluated after the genome that met it

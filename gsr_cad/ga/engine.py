@@ -94,10 +94,15 @@ class _OutOfTime(Exception):
     """The time budget ran out inside a batch of evaluations (raised between items, in-process only)."""
 
 
+class _Reached(Exception):
+    """A cost at or below the threshold came in a batch of evaluations (raised after it, in-process only)."""
+
+
 class _CostFn:
     """Picklable ``problem.cost`` wrapper; in the engine's own process it also records each result as it
     comes, so costs computed before a Ctrl-C are not lost, and it ends a batch once the time budget is spent
-    (after at least one cost is known), so a slow first population cannot overrun ``max_seconds``."""
+    (after at least one finite cost is known), so a slow first population cannot overrun ``max_seconds``, and as soon
+    as a cost reaches ``threshold`` (the rest of the batch would not be kept, :meth:`GeneticAlgorithm._evaluate`)."""
 
     def __init__(self, problem: Problem, sink: dict[GenomeT, float]) -> None:
         self.problem = problem
@@ -105,6 +110,8 @@ class _CostFn:
         self.owner = os.getpid()
         self.should_stop: Callable[[], bool] | None = None
         self.out_of_time: Callable[[], bool] | None = None
+        self.threshold: float | None = None
+        self.finite = False  # whether a finite cost is known (only then may the time budget end a batch)
 
     def stopping(self) -> bool:
         """Whether the run was asked to stop (polled by in-process evaluators between items)."""
@@ -113,15 +120,19 @@ class _CostFn:
     def __call__(self, genome: GenomeT) -> float:
         if self.stopping():
             raise KeyboardInterrupt
-        if self.out_of_time is not None and self.sink and os.getpid() == self.owner and self.out_of_time():
+        if self.out_of_time is not None and self.finite and os.getpid() == self.owner and self.out_of_time():
             raise _OutOfTime
         c = _clean_cost(self.problem.cost(genome))
         if self.sink is not None and os.getpid() == self.owner:
             self.sink[genome] = c
+            self.finite = self.finite or math.isfinite(c)
+            if self.threshold is not None and c <= self.threshold:
+                raise _Reached
         return c
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None, "out_of_time": None}
+        return {"problem": self.problem, "sink": None, "owner": self.owner, "should_stop": None, "out_of_time": None,
+                "threshold": None, "finite": False}
 
 
 class GeneticAlgorithm:
@@ -198,6 +209,8 @@ class GeneticAlgorithm:
         self._cost_fn.should_stop = should_stop
         budget = self.config.max_seconds
         self._cost_fn.out_of_time = None if budget is None else (lambda: self._elapsed() >= budget)
+        self._cost_fn.threshold = self.config.threshold
+        self._cost_fn.finite = any(math.isfinite(c) for c in self.memo.values())
         interrupted = False
         if checkpoint is not None:
             inner = on_generation
@@ -228,6 +241,7 @@ class GeneticAlgorithm:
             self._clock = None
             self._cost_fn.should_stop = None
             self._cost_fn.out_of_time = None
+            self._cost_fn.threshold = None
         best_genome, best_cost = self.best
         return RunResult(best_genome=best_genome, best_cost=best_cost, history=list(self.history),
                          generations=max(self.generation, 0), evaluations=self.evaluations,
@@ -301,7 +315,8 @@ class GeneticAlgorithm:
         genomes = seeds + [random_genome(self.problem, rng, cfg.min_initial_genes, cfg.max_initial_genes)
                            for _ in range(size - len(seeds))]
         costs = self._evaluate(genomes)
-        if size > cfg.population:
+        genomes, costs = self._scored(genomes, costs)
+        if size > cfg.population and len(genomes) > cfg.population:
             keep = roulette_select(costs, cfg.population, rng, replace=False)
             genomes, costs = [genomes[i] for i in keep], costs[keep]
         if cfg.scheme == "plus":
@@ -320,6 +335,10 @@ class GeneticAlgorithm:
                         for i in range(n_off)]
             genomes = pop[:n_elite] + children
             all_costs = np.concatenate([costs[:n_elite], self._evaluate(children)])
+            genomes, all_costs = self._scored(genomes, all_costs)
+            if len(genomes) < cfg.population:  # a batch cut at the threshold: the next survivors fill in
+                fill = slice(n_elite, n_elite + cfg.population - len(genomes))
+                genomes, all_costs = genomes + pop[fill], np.concatenate([all_costs, costs[fill]])
         else:
             n_par = min(cfg.n_parents, len(pop))
             parents = roulette_select(costs, n_par, rng, replace=False)
@@ -329,15 +348,17 @@ class GeneticAlgorithm:
             new += [random_genome(self.problem, rng, cfg.min_initial_genes, cfg.max_initial_genes)
                     for _ in range(cfg.n_newcomers)]
             all_costs = np.concatenate([costs, self._evaluate(new)])
-            genomes, all_costs = self._limit_duplicates(pop + new, all_costs)
+            genomes, all_costs = self._limit_duplicates(*self._scored(pop + new, all_costs))
         self._commit(self.generation + 1, genomes, all_costs)
 
     def _commit(self, generation: int, genomes: list[GenomeT], costs: np.ndarray) -> None:
-        """Install the next population (sorted), after the optional memetic polish of its best."""
+        """Install the next population (sorted), after the optional memetic polish of its best (skipped once the
+        best is within the threshold: the run ends with this generation)."""
         order = np.argsort(costs, kind="stable")
         genomes, costs = [genomes[i] for i in order], np.asarray(costs, dtype=float)[order]
         k = self.config.local_search_every
-        if k > 0 and generation % k == 0 and genomes and self._local_search(genomes, costs):
+        if (k > 0 and generation % k == 0 and genomes and not costs[0] <= self.config.threshold
+                and self._local_search(genomes, costs)):
             order = np.argsort(costs, kind="stable")
             genomes, costs = [genomes[i] for i in order], costs[order]
         self.population, self.costs, self.generation = genomes, costs, generation
@@ -404,12 +425,25 @@ class GeneticAlgorithm:
 
     # ------------------------------------------------------------------ helpers
     def _evaluate(self, genomes: Sequence[GenomeT]) -> np.ndarray:
-        """Costs of ``genomes``; only the ones not in the memo go to the evaluator (once each)."""
+        """Costs of ``genomes``; only the ones not in the memo go to the evaluator (once each). The batch ends at
+        its first cost at or below the threshold: computed serially in this process, the rest is not computed;
+        from worker processes, the rest is dropped, so the run is the same. The genomes after it get inf and
+        stay out of the memo (:meth:`_scored` leaves them out of the generation)."""
         todo = list(dict.fromkeys(g for g in genomes if g not in self.memo))
         if todo:
-            results = list(self.evaluator(self._cost_fn, todo))
-            if len(results) != len(todo):
-                raise ConfigError(f"evaluator returned {len(results)} costs for {len(todo)} genomes")
+            try:
+                results = list(self.evaluator(self._cost_fn, todo))
+            except _Reached:
+                todo = [g for g in todo if g in self.memo]
+                results = [self.memo[g] for g in todo]
+            else:
+                if len(results) != len(todo):
+                    raise ConfigError(f"evaluator returned {len(results)} costs for {len(todo)} genomes")
+            hit = next((i for i, value in enumerate(results) if _clean_cost(value) <= self.config.threshold), None)
+            if hit is not None:
+                for g in todo[hit + 1:]:
+                    self.memo.pop(g, None)
+                todo, results = todo[:hit + 1], results[:hit + 1]
             best = self._best
             for g, value in zip(todo, results):
                 c = _clean_cost(value)
@@ -417,7 +451,14 @@ class GeneticAlgorithm:
                 if best is None or c < best[1]:
                     best = (g, c)
             self._best = best
-        return np.array([self.memo[g] for g in genomes], dtype=float)
+        return np.array([self.memo.get(g, math.inf) for g in genomes], dtype=float)
+
+    def _scored(self, genomes: list[GenomeT], costs: np.ndarray) -> tuple[list[GenomeT], np.ndarray]:
+        """``genomes`` and ``costs`` without the genomes left unevaluated (a batch cut at the threshold)."""
+        keep = [i for i, g in enumerate(genomes) if g in self.memo]
+        if len(keep) == len(genomes):
+            return genomes, costs
+        return [genomes[i] for i in keep], np.asarray(costs, dtype=float)[keep]
 
     def _best_from_memo(self) -> None:
         """After an interrupt: include costs recorded during the unfinished batch."""

@@ -213,38 +213,97 @@ def _stop_when(deadline: float | None, should_stop: Callable[[], bool] | None) -
     return out_of_time
 
 
-_MARGIN = 2.0  # a fit's predicted seconds are this many times the last fit's rate (larger cages cost more)
+_MARGIN = 1.3  # predicted seconds are this many times the measured ones (the load varies)
+MIN_ROUNDS = 2  # a fit starts only when this many of its rounds are predicted to end in time
+_GROWTH = {"round": 1.0, "residual": 1.0, "commit": 2.0}
+"""How each kind of the refinement's work grows with the cage's control vertices: a fit round and the residual
+linearly (target points, area samples and unknowns), a level's commit as the square (each of its moves replays
+on the whole cage)."""
+
+
+class Timing:
+    """Seconds of the refinement's work measured per kind (``_GROWTH``) and cage size, and predicted for another
+    cage: the last measurement at the largest cage not larger, grown by ``_GROWTH`` (the smallest measured cage's
+    as it is for a smaller one), ``_MARGIN`` times; 0 before any measurement."""
+
+    def __init__(self) -> None:
+        self.seen: dict[str, dict[int, float]] = {}
+
+    def add(self, kind: str, vertices: int, seconds: float) -> None:
+        self.seen.setdefault(kind, {})[int(vertices)] = float(seconds)
+
+    def predict(self, kind: str, vertices: int) -> float:
+        seen = self.seen.get(kind)
+        if not seen:
+            return 0.0
+        below = [n for n in seen if n <= vertices]
+        n = max(below) if below else min(seen)
+        return _MARGIN * seen[n] * max(vertices / n, 1.0) ** _GROWTH[kind]
 
 
 class _Fitter:
     """The refinement's fits (adaptive, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`), timed: a fit
-    predicted to end after the deadline (from the seconds per round and control vertex so far, ``_MARGIN``
-    times) is skipped, and no round of one starts after it."""
+    whose first ``MIN_ROUNDS`` rounds are predicted to end after its deadline is skipped, and no round of one
+    starts that would end after it. A cage's deadline leaves room for the work after its fit: its commit as a
+    level and ``tail(vertices)`` (the caller's work after the refinement)."""
 
-    def __init__(self, problem, deadline: float | None):
+    def __init__(self, problem, deadline: float | None, tail: Callable[[int], float] | None = None):
         self.problem = problem
         self.deadline = deadline
-        self.rate = 0.0
+        self.tail = tail
+        self.timing = Timing()
 
-    def fits_in_time(self, mesh: PolyMesh, rounds: int) -> bool:
-        return (self.deadline is None
-                or time.perf_counter() + _MARGIN * self.rate * rounds * mesh.n_vertices <= self.deadline)
+    def end(self, mesh: PolyMesh) -> float | None:
+        """The deadline of a fit of ``mesh`` (None: no time limit)."""
+        if self.deadline is None:
+            return None
+        n = mesh.n_vertices
+        return self.deadline - self.timing.predict("commit", n) - (self.tail(n) if self.tail is not None else 0.0)
+
+    def late(self, mesh: PolyMesh) -> float | None:
+        """The deadline of the work on ``mesh`` after its fit (its commit): the caller's tail kept free."""
+        if self.deadline is None:
+            return None
+        return self.deadline - (self.tail(mesh.n_vertices) if self.tail is not None else 0.0)
+
+    def fits_in_time(self, mesh: PolyMesh, rounds: int, extra: str | None = None) -> bool:
+        """Whether a fit of ``mesh`` (after ``extra`` work of that kind, e.g. its residual) can do
+        ``min(rounds, MIN_ROUNDS)`` rounds before its deadline."""
+        end = self.end(mesh)
+        if end is None:
+            return True
+        n = mesh.n_vertices
+        ahead = self.timing.predict("round", n) * (min(rounds, MIN_ROUNDS) + 1)
+        if extra is not None:
+            ahead += self.timing.predict(extra, n)
+        return time.perf_counter() + ahead <= end
 
     def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
-                               deadline=self.deadline)
-        self.rate = (time.perf_counter() - start) / max(rounds * mesh.n_vertices, 1)
+                               deadline=self.end(mesh))
+        done = getattr(self.problem, "fit_rounds", rounds)
+        self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
+        return out
+
+    def timed(self, kind: str, mesh: PolyMesh, work: Callable[[], object]):
+        """``work()``, its seconds recorded as ``kind`` for a cage the size of ``mesh``."""
+        start = time.perf_counter()
+        out = work()
+        self.timing.add(kind, mesh.n_vertices, time.perf_counter() - start)
         return out
 
 
 def refine(problem, genome: tuple, goal: float, deadline: float | None, max_faces: int,
            record: Callable[[PolyMesh, float, tuple], None] | None = None,
-           should_stop: Callable[[], bool] | None = None) -> tuple[tuple, list[Level]]:
+           should_stop: Callable[[], bool] | None = None,
+           tail: Callable[[int], float] | None = None) -> tuple[tuple, list[Level]]:
     """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
     docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
     largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
-    to it. Returns the refined genome and the levels.
+    to it. ``tail(vertices)``: the seconds the caller needs after the refinement for a cage that size (kept
+    free before the deadline; each fit, residual and commit is timed and the next predicted from them,
+    :class:`Timing`). Returns the refined genome and the levels.
 
     The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
     template's own geometry, where they apply cleanly) followed by one move per control vertex to the
@@ -252,7 +311,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     """
     started = time.perf_counter()
     out_of_time = _stop_when(deadline, should_stop)
-    _fit = _Fitter(problem, deadline)
+    _fit = _Fitter(problem, deadline, tail)
     genome = tuple(genome)
     fitted = problem.control_mesh(genome)
     base = tuple(op for op in genome if not isinstance(op, TranslateVertex))
@@ -261,14 +320,16 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         base, base_state = genome, fitted
     v, cost = _fit(fitted, LEVEL_ROUNDS)
     mesh = fitted.with_vertices(v)
-    full = _reach(problem, base, base_state, v) or _reach(problem, genome, fitted, v) or genome
+    full = _fit.timed("commit", fitted,
+                      lambda: _reach(problem, base, base_state, v) or _reach(problem, genome, fitted, v) or genome)
     if full == genome:
         mesh, cost = fitted, problem.fit(fitted, 0)[1]
     levels = [Level((), mesh, cost, time.perf_counter() - started)]
     if record is not None:
         record(mesh, cost, full)
-    while cost > goal and mesh.n_faces < max_faces and not out_of_time():
-        res = residual(problem, mesh)
+    while (cost > goal and mesh.n_faces < max_faces and not out_of_time()
+           and _fit.fits_in_time(mesh, TRIAL_ROUNDS, "residual")):
+        res = _fit.timed("residual", mesh, lambda: residual(problem, mesh))
         proposals = []  # (ops, what they build from base_state or None, the cage to fit)
         split = split_all(base_state, mesh)
         if split is None:
@@ -305,10 +366,11 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         for _, _, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
             if out_of_time():
                 break
-            if len(ops) == 1:
+            if len(ops) == 1 and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the trial's fit stands
                 v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
             if c < MIN_GAIN * cost:
-                chosen = _commit(problem, base, base_state, full, ops, a, b.with_vertices(v), c, cost)
+                chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
+                                                                 b.with_vertices(v), c, cost, _fit.late(b)))
                 if chosen is not None:
                     break
         if chosen is None:
@@ -324,20 +386,20 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
 
 
 def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,
-            fitted: PolyMesh, c: float, cost: float) -> tuple | None:
+            fitted: PolyMesh, c: float, cost: float, deadline: float | None = None) -> tuple | None:
     """A level from the fitted cage of ``ops``: ``(ops, the new base, its state, the level's genome, the cage it
     replays to, its distance)``. The ops replay on the base's geometry (``a``, when they apply there) or
     after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
     moves refuse, the cage the others reach stands if it still gains (below ``MIN_GAIN`` of ``cost``); else
     None."""
     if a is not None:
-        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices)
+        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices, deadline)
         if not left:
             return ops, base + ops, a, step, fitted, c
     prefix, state = _after(problem, full, ops)
     if state is None:
         return None
-    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices)
+    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline)
     if left:
         try:
             c = problem.fit(reached, 0)[1]
@@ -386,7 +448,8 @@ def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tup
             continue
         a = _apply(ops, base_state)
         a = a if a is not None and a.topology_key == b.topology_key else None
-        chosen = _commit(problem, base, base_state, full, ops, a, b.with_vertices(v), c, cost)
+        chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
+                                                         b.with_vertices(v), c, cost, _fit.late(b)))
         if chosen is not None:
             return chosen
     return None
@@ -421,10 +484,11 @@ def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
     return prefix, _apply(ops, problem.control_mesh(prefix))
 
 
-def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray,
+                   deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
     """``base`` (which builds ``state``) followed by the moves towards ``vertices`` that replay, the cage they
-    reach and how many vertices did not get there."""
-    moves, reached, refused = problem._moves(state, vertices)
+    reach and how many vertices did not get there (no staged attempt of the moves starting after ``deadline``)."""
+    moves, reached, refused = problem._moves(state, vertices, deadline)
     return base + moves, reached, refused
 
 

@@ -472,7 +472,8 @@ class SurfaceProblem:
         fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
         far from the target): a round that raises the cost is undone and retried ten times more damped (up
         to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
-        ``deadline`` (a ``time.perf_counter()`` value): no round starts after it.
+        ``deadline`` (a ``time.perf_counter()`` value): no round starts that would end after it (each taking as
+        long as the rounds so far). ``self.fit_rounds``: the rounds the last fit started (for time predictions).
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -487,14 +488,19 @@ class SurfaceProblem:
         held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         smooth = None
+        began = time.perf_counter()
+        self.fit_rounds = 0
         for r in range(max(rounds, 0) + 1):
             surface = LimitSurface(layout, V)
             pairs, cost = self._pairs(surface, hint)
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
-            if r == rounds or cost == 0.0 or (deadline is not None and time.perf_counter() >= deadline):
+            # no round starts that would end after the deadline (a round takes about as long as the last)
+            if r == rounds or cost == 0.0 or (deadline is not None and time.perf_counter()
+                                              + (time.perf_counter() - began) / max(r, 1) >= deadline):
                 break
+            self.fit_rounds = r + 1
             if adaptive and saved is not None and cost >= saved[3]:
                 fails += 1  # the step made it worse: back to where it started, damped more
                 if fails > _RETRIES:
@@ -544,7 +550,7 @@ class SurfaceProblem:
                 break
         return best_v, best_cost
 
-    def _moves(self, state: PolyMesh, goal: np.ndarray) -> tuple[tuple, PolyMesh, int]:
+    def _moves(self, state: PolyMesh, goal: np.ndarray, deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
         """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
         vertices did not get there)``.
 
@@ -554,7 +560,8 @@ class SurfaceProblem:
         already there: one op each, a few more only for the vertices that need them); failing that, every
         vertex follows the straight path between the two meshes in stages; failing that too, the first
         attempt's partial moves stand. Staged moves are then merged vertex by vertex where the history still
-        replays (:func:`_compact_moves`).
+        replays (:func:`_compact_moves`). No staged attempt starts after ``deadline`` (a
+        ``perf_counter`` value).
         """
         tol = 1e-12 * self.diag
         goal = np.asarray(goal, dtype=np.float64)
@@ -564,6 +571,8 @@ class SurfaceProblem:
         for origin, ops in ((current, moves), (state, ())):
             start = origin.vertices
             for stages in (2, 4, 8, 16):
+                if deadline is not None and time.perf_counter() >= deadline:  # no staged attempt starts after it
+                    return moves, current, refused
                 trial, steps = origin, list(ops)
                 for k in range(1, stages + 1):
                     stage, trial, left = _ordered_moves(trial, start + (k / stages) * (goal - start), tol)
@@ -590,13 +599,14 @@ class SurfaceProblem:
         return out
 
     def polished(self, genome: tuple, rounds: int, min_gain: float = 1.0, attempts: int = 3,
-                 compact: bool = False) -> tuple:
+                 compact: bool = False, deadline: float | None = None) -> tuple:
         """``genome``'s positions polished and written back as ``translate_vertex`` ops after the shortest
         base of :meth:`_bases` that reaches them (during the search, only the trailing moves are replaced:
         earlier moves place the ops that follow them, which helps those ops fit).
 
         Moves the ops refuse are left out and the polish is tried again from what did apply, up to
-        ``attempts`` times. Returns the cheapest genome seen (``genome`` itself if nothing helps).
+        ``attempts`` times (no fit round starting that would end after ``deadline``, a ``perf_counter`` value).
+        Returns the cheapest genome seen (``genome`` itself if nothing helps).
         """
         best = tuple(genome)
         if rounds <= 0:
@@ -604,7 +614,9 @@ class SurfaceProblem:
         best_cost = self.evaluate(best, 0).cost
         for _ in range(attempts):
             mesh = self.control_mesh(best)
-            new_v = self.fit(mesh, rounds, min_gain)[0]
+            if deadline is not None and time.perf_counter() >= deadline:
+                break
+            new_v = self.fit(mesh, rounds, min_gain, deadline=deadline)[0]
             tries = []
             for ops, base in self._bases(best, mesh, compact):
                 moves, _, refused = self._moves(base, new_v)
@@ -633,6 +645,32 @@ class SurfaceProblem:
             return short if self.evaluate(short, 0).cost <= limit else genome
         except GsrError:
             return genome
+
+    def grouped(self, genome: tuple, deadline: float | None = None) -> tuple:
+        """``genome`` as a designer writes it: its structural ops first, then one move per vertex to the same
+        control mesh, when those ops build its connectivity without the moves between them and every move
+        replays in one pass (:func:`_ordered_moves`); ``genome`` itself otherwise, when that is longer, or
+        when the moves (timed by one of them) are predicted to end after ``deadline`` (a ``perf_counter`` value).
+        """
+        genome = tuple(genome)
+        core = tuple(op for op in genome if not isinstance(op, TranslateVertex))
+        if genome[:len(core)] == core:
+            return genome
+        want = self.control_mesh(genome)
+        kept, state = self.walk(core)
+        if len(kept) != len(core) or state.topology_key != want.topology_key:
+            return genome
+        if deadline is not None:
+            start = time.perf_counter()
+            with contextlib.suppress(OpError):  # about what each move costs
+                TranslateVertex(0, (0.0, 0.0, 0.0)).apply(state)
+            if time.perf_counter() + 2 * state.n_vertices * (time.perf_counter() - start) > deadline:
+                return genome
+        moves, reached, refused = _ordered_moves(state, want.vertices, 1e-12 * self.diag)
+        if (refused or len(core) + len(moves) > len(genome)
+                or np.abs(reached.vertices - want.vertices).max() > 1e-12 * self.diag):
+            return genome
+        return core + moves
 
     def merged(self, genome: tuple) -> tuple:
         """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
@@ -1084,8 +1122,11 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
     refining = config.refine and config.fitness == "surface"
     ga_config = _ga_config(config)
-    if refining and config.max_seconds:  # the refinement gets its share of the time
-        ga_config = dataclasses.replace(ga_config, max_seconds=config.max_seconds * (1.0 - config.refine_share))
+    deadline = started + config.max_seconds if config.max_seconds else None
+    if deadline is not None:  # the search's share of the time left (the refinement gets the rest)
+        share = (1.0 - config.refine_share) if refining else 1.0 - _POST_RESERVE
+        ga_config = dataclasses.replace(ga_config, max_seconds=max(
+            share * config.max_seconds - (time.perf_counter() - started), _MIN_SEARCH * config.max_seconds))
     engine = start_or_resume(problem, ga_config, seed, evaluator, checkpoint, tag)
     changes: list[tuple[int, float, tuple]] = []
 
@@ -1107,30 +1148,46 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     def hurry() -> bool:
         return should_stop is not None and bool(should_stop())
 
+    snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
+                 for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
+    tail = _tail(problem, best, search, tgt, config)  # also measures the search winner's metrics
+    before_best = tail.metrics
+    polish_at = time.perf_counter()
+    # the polish and the history rewrite of the winner: before the refinement at most POST_SHARE of the time
+    # left, else up to the final metrics
+    post = None
+    if deadline is not None:
+        left = max(deadline - tail(tail.vertices) - polish_at, 0.0)
+        post = polish_at + (POST_SHARE * left if refining else left)
+
+    def post_stop() -> bool:
+        return hurry() or (post is not None and time.perf_counter() >= post)
+
     final = best
     if best and not hurry():
-        final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True))
+        final = problem.merged(problem.polished(best, config.final_polish_rounds, compact=True, deadline=post))
     polished_at = time.perf_counter()
-    polish_seconds = polished_at - searched
+    polish_seconds = polished_at - polish_at
     searched_ops = _letters(final)
-    if config.simplify_history and final and not hurry():
-        final = problem.simplified(final, should_stop)
+    if config.simplify_history and final and not post_stop():
+        final = problem.simplified(final, post_stop)
     simplify_seconds = time.perf_counter() - polished_at
     refined_at = time.perf_counter()
     growth = None
     if refining and final and not hurry():
         goal = config.max_distance if config.max_distance is not None else config.refine_until
-        deadline = (started + config.max_seconds if config.max_seconds
-                    else time.perf_counter() + config.refine_seconds if config.refine_seconds else None)
-        growth = _refined(problem, final, goal, deadline, pareto, should_stop, config.max_distance is not None)
+        until = (deadline if deadline is not None
+                 else time.perf_counter() + config.refine_seconds if config.refine_seconds else None)
+        growth = _refined(problem, final, goal, until, pareto, should_stop, config.max_distance is not None, tail)
         if growth is not None:
             final, pareto = growth.genome, growth.front
-    if final and not hurry():
-        final = problem.pruned(problem.merged(final))
+    late = None if deadline is None or not final else deadline - tail(problem.control_mesh(final).n_vertices)
+    if final and not hurry() and (late is None or time.perf_counter() < late):
+        final = problem.pruned(problem.grouped(problem.merged(final), late))
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
-    before = surface_metrics(problem.control_mesh(best), search, config) if final != best else metrics
+    before = before_best if final != best and before_best is not None else metrics
     metrics.update({
         "fitness": problem.evaluate(final, 0).cost if growth is None else growth.cost,
         "fitness_kind": ("mixed mean distance / diagonal" if config.fitness == "mixed"
@@ -1159,8 +1216,6 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         # the front's measure: the search's symmetric distance (the reported fit_to_data also holds a mesh
         # target's own chord error)
         metrics["tolerance_met"] = bool(metrics["fitness"] <= config.max_distance)
-    snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
-                 for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
     cfg = config.to_json()
     cfg.update({
         "preset": preset,
@@ -1187,8 +1242,41 @@ samples and every centroid, :class:`~gsr_cad.geometry.surface_distance.NearTrian
 for the surface within its sampling radius (a coarse tessellation's chords are not its surface)."""
 
 
-METRICS_SHARE = 0.05
-"""Share of the refinement's time left to the final metrics (exact, on all points) of a large cage."""
+POST_SHARE = 0.25
+"""Most share of the time left after the search that the winner's final polish and history rewrite may take."""
+_MIN_SEARCH = 0.01  # the search gets at least this share of max_seconds, whatever the preparation took
+_POST_RESERVE = 0.1  # share of max_seconds left after the search when there is no refinement (polish, metrics)
+TAIL_MARGIN = 1.2
+TAIL_GROWTH = 0.4
+"""The final metrics of a cage are predicted to take ``TAIL_MARGIN`` times the search winner's (per target point)
+times the growth in control vertices to this power, so the refinement leaves that much time before the deadline.
+On the 56k-triangle bunny: 8.7 s at 16 control vertices and 6.6 s at 296 (load 5-7), 11-15 s at 16 and 10-17 s
+at 84 (load 8-10); elsewhere, under load 8-10, 29 s at 386 and 129 s at 1538: most of it does not grow with the
+cage (the target's side) until the cage is large."""
+
+
+class _Tail:
+    """The seconds the work after the refinement needs for a cage of ``vertices`` control vertices (callable):
+    the final metrics on all of ``target``'s points, predicted from those of the search winner (``metrics``,
+    measured on the search's points, ``seconds``, at ``vertices``)."""
+
+    def __init__(self, metrics: dict[str, Any] | None, seconds: float, vertices: int, scale: float):
+        self.metrics, self.seconds, self.vertices, self.scale = metrics, seconds, max(vertices, 1), scale
+
+    def __call__(self, vertices: int) -> float:
+        return TAIL_MARGIN * self.seconds * self.scale * max(vertices / self.vertices, 1.0) ** TAIL_GROWTH
+
+
+def _tail(problem: SurfaceProblem, best: tuple, search: SurfaceTarget, target: SurfaceTarget,
+          config: SurfaceConfig) -> _Tail:
+    """The search winner's metrics on the search's points, timed, as a :class:`_Tail`."""
+    if not best:
+        return _Tail(None, 0.0, 1, 1.0)
+    start = time.perf_counter()
+    mesh = problem.control_mesh(best)
+    metrics = surface_metrics(mesh, search, config)
+    scale = max(len(target.points) / max(len(search.points), 1), 1.0) if target.faces is None else 1.0
+    return _Tail(metrics, time.perf_counter() - start, mesh.n_vertices, scale)
 
 
 class Growth(NamedTuple):
@@ -1213,21 +1301,22 @@ def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
 
 def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: float | None,
              searched: list[tuple[int, float, tuple]], should_stop: Callable[[], bool] | None,
-             pick: bool) -> Growth | None:
+             pick: bool, tail: Callable[[int], float] | None = None) -> Growth | None:
     """The searched winner ``genome`` grown by :func:`~gsr_cad.reconstruct.refine.refine` until ``goal``
     (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
     measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
     the winner is within ``goal`` already and no tolerance was asked."""
     config = problem.config
-    if deadline is not None:  # the final metrics on all points come after it
-        deadline -= METRICS_SHARE * max(deadline - time.perf_counter(), 0.0)
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
     exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
     grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
                             exact_back=exact, exact_facets=True)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
+    if deadline is not None and tail is not None and time.perf_counter() + tail(
+            grower.control_mesh(genome).n_vertices) >= deadline:  # no time left beyond the final metrics
+        return None
     start = grower.fit(grower.control_mesh(genome), 0)[1]
     if start <= goal and not pick:  # nothing to grow: the search's front and measure stand
         return None
@@ -1240,7 +1329,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
 
     winner = grower.control_mesh(genome).n_vertices
     for n, _, g in searched:
-        if n >= winner or (should_stop is not None and should_stop()):
+        if (n >= winner or (should_stop is not None and should_stop())
+                or (deadline is not None and time.perf_counter() >= deadline)):
             break
         with contextlib.suppress(GsrError):
             mesh = grower.control_mesh(g)
@@ -1254,7 +1344,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     if pick and meets:
         return Growth(meets[0][2], meets[0][1], front(found), [])
     final, levels = refine(grower, genome, goal, deadline, refine_face_limit(target, config.refine_max_faces), record,
-                           should_stop)
+                           should_stop, tail)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
