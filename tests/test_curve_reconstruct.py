@@ -125,3 +125,16 @@ def test_tolerance_search_finds_an_exact_count_between_misses():
     assert result.metrics["tolerance_met"]
     assert result.metrics["n_control_points"] == 5
     assert result.metrics["data_to_fit_max"] < 1e-9
+
+
+def test_a_limit_below_the_noise_returns_the_closer_plain_fit():
+    """0.7 % noise and a 1e-3 limit: the limit search chases the noise (377 points, 0.21 of the diagonal off
+    between the samples); the fit without a limit is closer both ways, so it is returned, still reported unmet."""
+    pts = get_sample("bspline_07_noisy").points
+    with pytest.warns(UserWarning, match="misses the requested"):
+        result = reconstruct_curve(pts, seed=0, max_distance=1e-3)
+    m = result.metrics
+    assert m["tolerance_met"] is False and m["unmet_limit_fallback"] is True
+    assert max(m["data_to_fit_max"], m["fit_to_data_max"]) < 0.05
+    assert m["n_control_points"] <= 12
+    np.testing.assert_array_equal(genome_mod.replay(result.template, result.genome).points, result.control_points)

@@ -590,6 +590,10 @@ def _ga_config(config: CurveConfig, problem: CurveProblem) -> GAConfig:
     )
 
 
+def _worst(metrics: dict) -> float:
+    return max(metrics["data_to_fit_max"], metrics["fit_to_data_max"])
+
+
 def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | None = None, preset: str = "default",
                       seed: int | None = None, config: CurveConfig | None = None,
                       progress: Callable[[GenerationReport], None] | None = None,
@@ -644,8 +648,20 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
         "reordered": prep.reordered,
         "search_points": int(problem.m),
     })
+    if metrics.get("tolerance_met") is False and not run.interrupted and not hurry:
+        # A limit below the data's noise drives the search to ever more points that chase it; the fit chosen
+        # without a limit (the information criterion's) is then often closer both ways: keep the closer one.
+        plain = reconstruct_curve(target, config=dataclasses.replace(config, max_distance=None), preset=preset,
+                                  seed=run.seed, evaluator=evaluator, should_stop=should_stop)
+        alt = curve_metrics(plain.control_points, prep.points, problem.degree, problem.closed,
+                            tuple(plain.config["corners"]), config.max_distance, data_corners)
+        if _worst(alt) < _worst(metrics):
+            final, ctrl, corners = plain.genome, plain.control_points, tuple(plain.config["corners"])
+            template = plain.template
+            metrics.update(alt)
+            metrics.update(n_ops=len(final), fitness=plain.metrics["fitness"], unmet_limit_fallback=True)
     if metrics.get("tolerance_met") is False:
-        worst = max(metrics["data_to_fit_max"], metrics["fit_to_data_max"])
+        worst = _worst(metrics)
         warnings.warn(f"max distance {worst:.3g} of the diagonal misses the requested {config.max_distance:g}",
                       CurveWarning, stacklevel=2)
     cfg = config.to_json()
