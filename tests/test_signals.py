@@ -177,8 +177,8 @@ def test_second_ctrl_c_still_leaves_a_result(tmp_path):
 def test_max_seconds_is_a_hard_cap(tmp_path):
     """--max-seconds bounds the whole reconstruction (search, polish, rewrite), not just the generations."""
     out = tmp_path / "out"
-    run = gsr([*_argv("surface", tmp_path, out), "--generations", "200", "--max-seconds", "3", "--formats", "none",
-               "--quiet"], tmp_path)
+    run = gsr([*_argv("surface", tmp_path, out), "--generations", "200", "--threshold", "0", "--max-seconds", "3",
+               "--formats", "none", "--quiet"], tmp_path)  # threshold 0: the protrusion start finds this target at once
     assert_clean(run)
     assert run.code == 0, run.describe()
     result = Result.load(out / "result.json")
