@@ -25,7 +25,7 @@ def _lumpy(seed: int) -> PolyMesh:
     return mesh.with_vertices(mesh.vertices * (1.0 + 0.3 * rng.random((mesh.n_vertices, 1))))
 
 
-def test_timing_predicts_from_the_nearest_smaller_cage():
+def test_timing_predicts_from_the_largest_smaller_cages():
     t = Timing()
     assert t.predict("round", 100) == 0.0
     t.add("round", 10, 1.0)
@@ -33,8 +33,15 @@ def test_timing_predicts_from_the_nearest_smaller_cage():
     t.add("commit", 10, 1.0)
     assert t.predict("round", 5) == pytest.approx(1.3 * 1.0)  # smaller than any: the smallest's, as it is
     assert t.predict("round", 20) == pytest.approx(1.3 * 2.0)  # from 10, linearly
-    assert t.predict("round", 80) == pytest.approx(1.3 * 4.0)  # from 40, linearly
+    assert t.predict("round", 80) == pytest.approx(1.3 * 6.0)  # the median of 10's (8) and 40's (4), linearly
     assert t.predict("commit", 30) == pytest.approx(1.3 * 9.0)  # commits grow as the square
+
+
+def test_one_slow_commit_does_not_set_every_later_prediction():
+    t = Timing()
+    for n, seconds in ((360, 0.13), (388, 0.25), (416, 41.0)):  # bone: one commit of many staged moves
+        t.add("commit", n, seconds)
+    assert t.predict("commit", 452) < 1.0
 
 
 @pytest.mark.parametrize("budget", [20.0])

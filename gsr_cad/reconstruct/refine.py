@@ -223,8 +223,8 @@ on the whole cage)."""
 
 class Timing:
     """Seconds of the refinement's work measured per kind (``_GROWTH``) and cage size, and predicted for another
-    cage: the last measurement at the largest cage not larger, grown by ``_GROWTH`` (the smallest measured cage's
-    as it is for a smaller one), ``_MARGIN`` times; 0 before any measurement."""
+    cage: the median of the measurements at the three largest cages not larger, each grown by ``_GROWTH`` (the
+    smallest measured cage's as it is for a smaller one), ``_MARGIN`` times; 0 before any measurement."""
 
     def __init__(self) -> None:
         self.seen: dict[str, dict[int, float]] = {}
@@ -236,9 +236,11 @@ class Timing:
         seen = self.seen.get(kind)
         if not seen:
             return 0.0
-        below = [n for n in seen if n <= vertices]
-        n = max(below) if below else min(seen)
-        return _MARGIN * seen[n] * max(vertices / n, 1.0) ** _GROWTH[kind]
+        below = sorted(n for n in seen if n <= vertices)[-3:] or [min(seen)]
+        # the median of the three largest cages' (one slow commit, e.g. many staged moves, would otherwise
+        # reserve minutes for every later commit and end the refinement with half the budget unused)
+        grown = [seen[n] * max(vertices / n, 1.0) ** _GROWTH[kind] for n in below]
+        return _MARGIN * float(np.median(grown))
 
 
 class _Fitter:
