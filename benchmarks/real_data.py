@@ -4,7 +4,10 @@ baseline (:mod:`baseline_quadremesh`) at the same number of control vertices.
 Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bone, the Stanford bunny
 (56k faces), an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by
 ``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube, a rounded foot under a
-tube, a relief of three stacked extrusions), whichever are installed. pymeshlab's 10k-face bunny and cow
+tube, a relief of three stacked extrusions; and every one of the "Old" and "Parametric" examples that renders to one
+closed genus-0 piece: a rounded die with dimples, two intersections of extruded DXF profiles, an intersection of
+two height maps, a pyramid, a sphere with an imprint, an intersection of rotated bars, a comb of cones, an oval
+sign with raised text), whichever are installed. pymeshlab's 10k-face bunny and cow
 and OpenSCAD's CSG, logo and GEB examples are left out here: their genus (estimated by ``target_genus``) is
 not 0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes).
 A target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one
@@ -51,7 +54,9 @@ from genus_creases import GENUS_OPTIONS, genus_targets  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results" / "real_data.md"
 PYMESHLAB_MESHES = ("bone.ply", "bunny.obj", "airplane.obj")
 OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basics/text_on_cube.scad",
-                  "Advanced/offset.scad", "Advanced/surface_image.scad")
+                  "Advanced/offset.scad", "Advanced/surface_image.scad", "Old/example006.scad", "Old/example007.scad",
+                  "Old/example010.scad", "Old/example011.scad", "Old/example012.scad", "Old/example013.scad",
+                  "Old/example014.scad", "Old/example019.scad", "Parametric/sign.scad")
 
 
 def targets(work: Path, only: list[str] | None = None) -> list[Path]:

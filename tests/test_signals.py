@@ -162,7 +162,8 @@ def test_signal_leaves_complete_or_untouched_out(tmp_path, kind, sig, when):
 def test_second_ctrl_c_still_leaves_a_result(tmp_path):
     """Two Ctrl-C in the search: the best so far is still written (not an empty folder)."""
     out = tmp_path / "out"
-    run = Watched(_argv("surface", tmp_path, out), tmp_path)
+    # a search that is still running after 4 s (the inset-extrude target alone is fitted within 2 s)
+    run = Watched([*_argv("surface", tmp_path, out), "--generations", "200", "--threshold", "0"], tmp_path)
     time.sleep(4.0)
     run.proc.send_signal(signal.SIGINT)
     time.sleep(0.2)

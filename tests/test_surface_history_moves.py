@@ -14,7 +14,7 @@ from gsr_cad.ops.mesh import TranslateVertex, moves_to
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.reconstruct.refine import refine
-from gsr_cad.reconstruct.surface import SurfaceProblem, box_template
+from gsr_cad.reconstruct.surface import SurfaceProblem, _compact_moves, box_template
 
 
 def _cube() -> PolyMesh:
@@ -58,3 +58,23 @@ def test_a_refined_history_has_about_one_move_per_control_vertex():
     moves = sum(isinstance(op, TranslateVertex) for op in genome)
     assert moves <= 1.2 * control.n_vertices
     assert np.abs(control.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
+def test_staged_moves_merge_within_their_time_and_replay_to_the_same_cage():
+    mesh = _fine_cube()
+    v = mesh.vertices
+    goal = v + 1.5 * np.c_[np.sin(2.0 * v[:, 2]), np.zeros(len(v)), np.zeros(len(v))]
+    steps, state = [], mesh
+    for k in range(1, 9):  # every vertex in 8 equal stages: 8 moves each
+        stage, state, left = moves_to(state, v + (k / 8) * (goal - v), 1e-12)
+        assert left == 0
+        steps += stage
+    merged = _compact_moves(mesh, steps)
+    assert len(merged) <= 0.7 * len(steps)  # most vertices keep one move; the ones that would fold, more
+    late = _compact_moves(mesh, steps, until=time.perf_counter() - 1.0)  # no time: nothing merged
+    assert list(late) == steps
+    for history in (merged, late):
+        replayed = mesh
+        for op in history:
+            replayed = op.apply(replayed)
+        assert np.abs(replayed.vertices - goal).max() <= 1e-9
