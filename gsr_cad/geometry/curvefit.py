@@ -449,12 +449,26 @@ def warped_fit(target: np.ndarray, n_ctrl: int, terms: int, degree: int = 3,
     m = len(p)
     s = np.linspace(0.0, 1.0, m)
     warp = warp_basis(m, terms)
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
 
-    def solve(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        u = np.maximum.accumulate(np.clip(s + warp @ c, 0.0, 1.0))
-        basis = _dense_basis(*_rows(n_ctrl, u, degree, False), n_ctrl)
-        ctrl = np.linalg.lstsq(basis, p, rcond=None)[0]
-        return ctrl, u, basis @ ctrl - p
+    def solve(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Control points, parameters, residuals and the basis' orthonormal range at warp ``c``."""
+        key = np.asarray(c, dtype=np.float64).tobytes()
+        if key not in memo:
+            memo.clear()
+            u = np.maximum.accumulate(np.clip(s + warp @ c, 0.0, 1.0))
+            basis = _dense_basis(*_rows(n_ctrl, u, degree, False), n_ctrl)
+            ctrl = np.linalg.lstsq(basis, p, rcond=None)[0]
+            memo[key] = (ctrl, u, basis @ ctrl - p, np.linalg.qr(basis)[0])
+        return memo[key]
+
+    def jacobian(c: np.ndarray) -> np.ndarray:
+        """Kaufman's variable-projection Jacobian: the curve's motion along its tangent under each warp
+        term, with the part the control points absorb projected out."""
+        ctrl, u, _, q = solve(c)
+        moved = bspline.make_spline(ctrl, degree, False)(u, 1)[:, :, None] * warp[:, None, :]  # (m, dim, terms)
+        moved -= np.einsum("ik,kdj->idj", q, np.einsum("ik,idj->kdj", q, moved))
+        return moved.reshape(-1, terms)
 
     best = np.zeros(terms)
     if terms:
@@ -463,10 +477,11 @@ def warped_fit(target: np.ndarray, n_ctrl: int, terms: int, degree: int = 3,
             c0 = np.zeros(terms)
             c0[:min(terms, len(start))] = np.asarray(start, dtype=np.float64)[:terms]
             try:
-                sol = least_squares(lambda c: solve(c)[2].ravel(), c0, method="lm", xtol=1e-10, ftol=1e-10)
+                sol = least_squares(lambda c: solve(c)[2].ravel(), c0, jac=jacobian, method="lm", xtol=1e-10,
+                                    ftol=1e-10)
             except (ValueError, np.linalg.LinAlgError):
                 continue
             if np.all(np.isfinite(sol.x)) and 2.0 * sol.cost < best_sse:
                 best, best_sse = sol.x, 2.0 * sol.cost
-    ctrl, u, resid = solve(best)
+    ctrl, u, resid, _ = solve(best)
     return CurveFit(ctrl, u, np.linalg.norm(resid, axis=1), False), best

@@ -35,6 +35,7 @@ PERIODIC: Key = (-1, -1)  # the whole closed curve as one periodic segment
 SMALL_COUNT = 8  # a tolerance search tries every count below this: a B-spline's exact count may lie between misses
 WARP_TERMS = 4  # the most warp terms of the sampling model (u = s^2 needs one)
 BIC_TIE = 2.0  # BIC differences below this are no evidence (Kass and Raftery): the fewer warp terms win
+NOISE_RATIO = 4.0  # residuals whose squared RMS exceeds this many noise variances are model error, not noise
 SAMPLING_ALPHA = 0.01  # significance level at which the sampling model is rejected against free foot points
 
 
@@ -64,6 +65,14 @@ class SamplingChoice:
     f_stat: float
     p_value: float
     accepted: bool
+
+
+def _noise_variance(points: np.ndarray) -> float:
+    """The data's noise variance per coordinate, without a model: the mean square of the normalised fourth
+    differences (``(1, -4, 6, -4, 1) / sqrt(70)``: unit variance on white noise; a smooth curve's part is of
+    the order of the sample spacing to the fourth, far below)."""
+    diff = np.diff(points, n=4, axis=0) / math.sqrt(70.0)
+    return float(np.mean(diff ** 2)) if len(diff) else 0.0
 
 
 class CurveModel:
@@ -259,8 +268,11 @@ class CurveModel:
            model's least squares with free end control points. Either way the noisy end samples do not pin the
            curve's ends.
 
-        None (the free model's fit stands) on exact data (RMS within the tolerance), closed curves, subsampled
-        searches (their points are not evenly spaced by index) and too few points for the test.
+        None (the free model's fit stands) on exact data (RMS within the tolerance), on residuals that are model
+        error rather than noise (their squared RMS per normal coordinate above ``NOISE_RATIO`` times the data's
+        difference-based noise variance: smooth curves that are not B-splines leave 200-6000 times it, noisy
+        B-splines about 1), closed curves, subsampled searches (their points are not evenly spaced by index)
+        and too few points for the test.
         """
         if key == PERIODIC or self.closed or self.full is not None or key in self._densified:
             return None
@@ -268,7 +280,7 @@ class CurveModel:
         m, dim = pts.shape
         floor = max(self.config.tolerance, 1e-9) * self.diag
         base = self.refined(key, n_free)
-        if base.rms <= floor or m < 40:
+        if base.rms <= floor or m < 40 or base.rms ** 2 > NOISE_RATIO * (dim - 1) * _noise_variance(pts):
             return None
         top = min(self.max_count(key), 2 * n_free + 2)
         lo = self.min_count(key)
