@@ -7,7 +7,9 @@ every control point is free. With ``parametrization="geometric"`` the parameters
 projection (alternating with the solve), which removes the paper's assumption that the data are evenly
 spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined, and
 :func:`tangent_refine` (Gauss-Newton with the parameters eliminated) finishes what alternating correction
-leaves. Large systems (many control points) are solved through their sparse banded normal equations.
+leaves (optionally with the open curve's end points free, for noisy ends). :func:`warped_fit` is the
+index-wise correspondence with a smooth warp of the evenly spaced parameters (variable projection). Large
+systems (many control points) are solved through their sparse banded normal equations.
 """
 
 from __future__ import annotations

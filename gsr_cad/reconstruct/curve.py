@@ -22,7 +22,11 @@ template. Two evaluations are offered:
   on all their points when the search saw a subsample, or on the data's model when the points alone are too
   coarse), and a segment that still misses is cut in two where it misses most (a C0 joint: the paper's
   segmentation, so each part gets its own knot spacing); a remaining miss is reported in
-  ``metrics["tolerance_met"]``.
+  ``metrics["tolerance_met"]``. Without X, a noisy open curve without corners gets the count its sampling
+  supports (:meth:`~gsr_cad.reconstruct.curve_model.CurveModel.sampling`: an index-wise model with a smooth
+  warp, chosen by BIC and kept only when an F test against free foot points does not reject it; the outcome
+  is ``metrics["sampling"]``) and end points fitted like the others (the result's template starts and ends
+  there).
 """
 
 from __future__ import annotations
