@@ -102,3 +102,15 @@ def test_free_ends_fit_noisy_ends_and_keep_clean_exact():
     exact = fit_curve(clean, 5, 3, iterations=60, joint=True)
     again = tangent_refine(clean, CurveFit(exact.ctrl, exact.params, exact.distances), 3, free_ends=True)
     assert again.rms / np.linalg.norm(np.ptp(clean, axis=0)) < 1e-10
+
+
+def test_model_error_is_not_taken_for_noise():
+    """A smooth curve that is not a B-spline leaves a residual hundreds of times the data's own noise estimate:
+    the sampling test does not run."""
+    from gsr_cad.reconstruct.curve_model import _noise_variance
+
+    rng = np.random.default_rng(4)
+    white = rng.normal(0.0, 0.3, (4000, 2))
+    assert _noise_variance(white) == pytest.approx(0.09, rel=0.1)  # unit variance on white noise
+    result = reconstruct_curve(get_sample("sine_arc").points, seed=0)
+    assert "sampling" not in result.metrics
