@@ -7,7 +7,9 @@ every control point is free. With ``parametrization="geometric"`` the parameters
 projection (alternating with the solve), which removes the paper's assumption that the data are evenly
 spaced in parameter; the better of a uniform and a chord-length start (after one solve) is refined, and
 :func:`tangent_refine` (Gauss-Newton with the parameters eliminated) finishes what alternating correction
-leaves. Large systems (many control points) are solved through their sparse banded normal equations.
+leaves (optionally with the open curve's end points free, for noisy ends). :func:`warped_fit` is the
+index-wise correspondence with a smooth warp of the evenly spaced parameters (variable projection). Large
+systems (many control points) are solved through their sparse banded normal equations.
 """
 
 from __future__ import annotations
@@ -367,28 +369,43 @@ def minimax_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, iteration
 
 
 def tangent_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.ndarray | None = None,
-                   hi: np.ndarray | None = None, iterations: int = 40, rtol: float = 1e-6) -> CurveFit:
+                   hi: np.ndarray | None = None, iterations: int = 40, rtol: float = 1e-6,
+                   free_ends: bool = False) -> CurveFit:
     """Gauss-Newton on control points and parameters together, with the parameters eliminated: each round
     solves the control points for the squared distances with each point's tangential component weighted by
     ``lam`` (0: the normal distance only, the full Gauss-Newton step; 1: plain alternating correction), then
     re-projects the foot points; ``lam`` shrinks while the RMS drops and grows when it does not (Levenberg-
     Marquardt damping). Converges where alternating correction creeps, at the cost of a dense solve of the
-    coupled coordinates (for at most ``_DENSE_COLUMNS`` control points). Returns the best fit (never worse)."""
+    coupled coordinates (for at most ``_DENSE_COLUMNS`` control points). ``free_ends``: an open curve's end
+    control points are unknowns too (noisy end samples are no better than the others). Returns the best fit
+    (never worse)."""
     p = np.asarray(target, dtype=np.float64)
     m, dim = p.shape
     n, closed = len(fit.ctrl), fit.closed
-    inner = np.arange(n) if closed else np.arange(1, n - 1)
+    inner = np.arange(n) if closed or free_ends else np.arange(1, n - 1)
     if n > _DENSE_COLUMNS or len(inner) * dim >= m * (dim - 1):
         return fit
-    best, lam = fit, 0.1
+    ends = np.array([0, m - 1]) if free_ends and not closed else np.zeros(0, dtype=np.int64)
+
+    def pinned(ctrl: np.ndarray, params: np.ndarray, dist: np.ndarray) -> CurveFit:
+        """With free end control points the first and last samples stay at the curve's ends (parameters 0
+        and 1, their whole offset counted): otherwise nothing would hold the ends beyond the data."""
+        if ends.size:
+            params, dist = params.copy(), dist.copy()
+            params[ends] = (0.0, 1.0)
+            dist[ends] = np.linalg.norm(ctrl[[0, n - 1]] - p[ends], axis=1)
+        return CurveFit(ctrl, params, dist, closed)
+
+    best, lam = pinned(fit.ctrl, fit.params, fit.distances), 0.1
     for _ in range(iterations):
         spline = bspline.make_spline(best.ctrl, degree, closed)
         tangent = spline(best.params, 1)
         unit = tangent / np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-300)
+        unit[ends] = 0.0  # the end samples' tangential offsets count too
         root = np.eye(dim)[None] - (1.0 - math.sqrt(lam)) * unit[:, :, None] * unit[:, None, :]  # (m, dim, dim)
         cols, vals = _rows(n, best.params, degree, closed)
         basis = _dense_basis(cols, vals, n)
-        rhs = p - (0.0 if closed else basis[:, [0, n - 1]] @ best.ctrl[[0, n - 1]])
+        rhs = p - (0.0 if closed or free_ends else basis[:, [0, n - 1]] @ best.ctrl[[0, n - 1]])
         design = np.einsum("iab,ik->iakb", root, basis[:, inner]).reshape(m * dim, len(inner) * dim)
         sol = np.linalg.lstsq(design, np.einsum("iab,ib->ia", root, rhs).ravel(), rcond=None)[0]
         ctrl = best.ctrl.copy()
@@ -398,7 +415,7 @@ def tangent_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.nd
             lam = min(1.0, 4.0 * lam)
             continue
         params, dist = _project(ctrl, p, _ordered(best.params.copy(), closed), degree, closed)
-        trial = CurveFit(ctrl, params, dist, closed)
+        trial = pinned(ctrl, params, dist)
         if trial.rms < best.rms:
             gain = 1.0 - trial.rms / best.rms
             best, lam = trial, max(1e-4, 0.3 * lam)
@@ -409,3 +426,64 @@ def tangent_refine(target: np.ndarray, fit: CurveFit, degree: int = 3, lo: np.nd
         else:
             lam = min(1.0, 4.0 * lam)
     return best
+
+
+def warp_basis(m: int, terms: int) -> np.ndarray:
+    """``(m, terms)`` smooth warps of evenly spaced parameters ``s`` that keep both ends:
+    ``s (1 - s) P_j(2 s - 1)`` with ``P_j`` the Legendre polynomials (well conditioned, nested in ``terms``)."""
+    s = np.linspace(0.0, 1.0, m)
+    legendre = np.polynomial.legendre.legvander(2.0 * s - 1.0, max(terms - 1, 0))[:, :terms]
+    return (s * (1.0 - s))[:, None] * legendre
+
+
+def warped_fit(target: np.ndarray, n_ctrl: int, terms: int, degree: int = 3,
+               starts: tuple[np.ndarray, ...] = ()) -> tuple[CurveFit, np.ndarray]:
+    """Least squares of an open curve to points sampled at a smooth warp of evenly spaced parameters.
+
+    Sample ``i`` of ``m`` is matched index-wise to the curve at ``u_i = s_i + W(s_i) c`` (``s_i = i / (m - 1)``,
+    ``W`` = :func:`warp_basis` with ``terms`` columns): ``terms = 0`` is the paper's own evenly spaced
+    correspondence, each further term a smoother-to-rougher reparametrisation (``u = s^2`` is one term). Every
+    control point is an unknown, the ends included. The warp coefficients ``c`` are found by Levenberg-Marquardt
+    with the control points eliminated (variable projection), from zero and from each of ``starts`` (warp
+    coefficients, e.g. a fit's with fewer terms). Returns the fit (distances index-wise) and its ``c``.
+    """
+    p = np.asarray(target, dtype=np.float64)
+    m = len(p)
+    s = np.linspace(0.0, 1.0, m)
+    warp = warp_basis(m, terms)
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def solve(c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Control points, parameters, residuals and the basis' orthonormal range at warp ``c``."""
+        key = np.asarray(c, dtype=np.float64).tobytes()
+        if key not in memo:
+            memo.clear()
+            u = np.maximum.accumulate(np.clip(s + warp @ c, 0.0, 1.0))
+            basis = _dense_basis(*_rows(n_ctrl, u, degree, False), n_ctrl)
+            ctrl = np.linalg.lstsq(basis, p, rcond=None)[0]
+            memo[key] = (ctrl, u, basis @ ctrl - p, np.linalg.qr(basis)[0])
+        return memo[key]
+
+    def jacobian(c: np.ndarray) -> np.ndarray:
+        """Kaufman's variable-projection Jacobian: the curve's motion along its tangent under each warp
+        term, with the part the control points absorb projected out."""
+        ctrl, u, _, q = solve(c)
+        moved = bspline.make_spline(ctrl, degree, False)(u, 1)[:, :, None] * warp[:, None, :]  # (m, dim, terms)
+        moved -= np.einsum("ik,kdj->idj", q, np.einsum("ik,idj->kdj", q, moved))
+        return moved.reshape(-1, terms)
+
+    best = np.zeros(terms)
+    if terms:
+        best_sse = math.inf
+        for start in (np.zeros(terms), *starts):
+            c0 = np.zeros(terms)
+            c0[:min(terms, len(start))] = np.asarray(start, dtype=np.float64)[:terms]
+            try:
+                sol = least_squares(lambda c: solve(c)[2].ravel(), c0, jac=jacobian, method="lm", xtol=1e-10,
+                                    ftol=1e-10)
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            if np.all(np.isfinite(sol.x)) and 2.0 * sol.cost < best_sse:
+                best, best_sse = sol.x, 2.0 * sol.cost
+    ctrl, u, resid, _ = solve(best)
+    return CurveFit(ctrl, u, np.linalg.norm(resid, axis=1), False), best

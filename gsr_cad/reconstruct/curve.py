@@ -22,7 +22,11 @@ template. Two evaluations are offered:
   on all their points when the search saw a subsample, or on the data's model when the points alone are too
   coarse), and a segment that still misses is cut in two where it misses most (a C0 joint: the paper's
   segmentation, so each part gets its own knot spacing); a remaining miss is reported in
-  ``metrics["tolerance_met"]``.
+  ``metrics["tolerance_met"]``. Without X, a noisy open curve without corners gets the count its sampling
+  supports (:meth:`~gsr_cad.reconstruct.curve_model.CurveModel.sampling`: an index-wise model with a smooth
+  warp, chosen by BIC and kept only when an F test against free foot points does not reject it; the outcome
+  is ``metrics["sampling"]``) and end points fitted like the others (the result's template starts and ends
+  there).
 """
 
 from __future__ import annotations
@@ -46,7 +50,7 @@ from ..geometry.curveprep import corner_candidates, detect_closed, is_unordered,
 from ..geometry.distance import chord_length_params, foot_points, index_wise, two_sided
 from ..ops import curve as curve_ops
 from .config import CurveConfig
-from .curve_model import CurveModel
+from .curve_model import CurveModel, SamplingChoice
 from .inputs import CurveTarget, curve_target
 from .result import Result
 
@@ -139,6 +143,7 @@ class CurveProblem:
         self._sites = self.points[cand] if cand.size else np.zeros((0, self.points.shape[1]))
         self._site_tree = cKDTree(self._sites) if cand.size else None
         self._best_structures: dict[tuple[int, ...], tuple[float, int]] = {}
+        self.sampling: SamplingChoice | None = None  # the noisy open curve's sampling test (see final)
 
     # --- GA protocol -------------------------------------------------------------------------------
     def _state(self, prefix: tuple) -> curve_ops.Polygon:
@@ -377,11 +382,16 @@ class CurveProblem:
 
     # --- histories ---------------------------------------------------------------------------------
     def result_template(self, ctrl: np.ndarray) -> curve_ops.Polygon:
-        """The template with its box grown (if needed) to hold every final control point."""
+        """The template with its box grown (if needed) to hold every final control point; an open template's
+        end points are the curve's (the data's first and last point, or their least-squares estimates on noisy
+        data: ops never move the ends)."""
         t = self.template
         lo = np.minimum(self.lo, ctrl.min(axis=0))
         hi = np.maximum(self.hi, ctrl.max(axis=0))
-        return curve_ops.Polygon(t.points, tuple(lo.tolist()), tuple(hi.tolist()), t.closed, (), t.degree)
+        pts = np.array(t.points, dtype=np.float64)
+        if not t.closed:
+            pts[[0, -1]] = ctrl[[0, -1]]
+        return curve_ops.Polygon(pts, tuple(lo.tolist()), tuple(hi.tolist()), t.closed, (), t.degree)
 
     def history(self, ctrl: np.ndarray, corners: tuple[int, ...], template: curve_ops.Polygon) -> tuple:
         """A clean op history that builds ``ctrl`` with ``corners`` from ``template``.
@@ -432,6 +442,9 @@ class CurveProblem:
                 corners = ()
                 counts = self.model.allocation((), self.model.minimum_total(()))
         if self.config.max_distance is None or hurry:
+            self.sampling = None if hurry or corners else self.model.sampling(self.model.segments(())[0], n)
+            if self.sampling is not None:  # a noisy open curve: the count its sampling supports, free ends
+                return self.sampling.fit.ctrl, (), corners, (self.sampling.count,)
             ctrl, idx = self.model.assemble(corners, counts, refine=not hurry)
             return ctrl, idx, corners, counts
         full = self.prepared.points
@@ -648,6 +661,11 @@ def reconstruct_curve(points: np.ndarray | str | CurveTarget, *, scheme: str | N
         "reordered": prep.reordered,
         "search_points": int(problem.m),
     })
+    if problem.sampling is not None:
+        choice = problem.sampling
+        metrics["sampling"] = {"evenly_spaced": choice.accepted, "p_value": choice.p_value,
+                               "f_statistic": choice.f_stat, "warp_terms": choice.terms,
+                               "free_model_count": choice.free_count}
     if metrics.get("tolerance_met") is False and not run.interrupted and not hurry:
         # A limit below the data's noise drives the search to ever more points that chase it; the fit chosen
         # without a limit (the information criterion's) is then often closer both ways: keep the closer one.

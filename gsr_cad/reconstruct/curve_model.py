@@ -24,13 +24,19 @@ import math
 import numpy as np
 
 from ..geometry import bspline
-from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine, tangent_refine
-from ..geometry.distance import curve_to_points, data_model
+from scipy import stats
+
+from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine, tangent_refine, warp_basis, warped_fit
+from ..geometry.distance import curve_to_points, data_model, spline_foot_points
 from .config import CurveConfig
 
 Key = tuple[int, int]  # a segment: search-point indices (first, last), last may exceed the count (wraps, closed)
 PERIODIC: Key = (-1, -1)  # the whole closed curve as one periodic segment
 SMALL_COUNT = 8  # a tolerance search tries every count below this: a B-spline's exact count may lie between misses
+WARP_TERMS = 4  # the most warp terms of the sampling model (u = s^2 needs one)
+BIC_TIE = 2.0  # BIC differences below this are no evidence (Kass and Raftery): the fewer warp terms win
+NOISE_RATIO = 4.0  # residuals whose squared RMS exceeds this many noise variances are model error, not noise
+SAMPLING_ALPHA = 0.01  # significance level at which the sampling model is rejected against free foot points
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +52,27 @@ class SegmentFit:
     @property
     def both_max(self) -> float:
         return max(self.data_max, self.curve_max)
+
+
+@dataclasses.dataclass(frozen=True)
+class SamplingChoice:
+    """The outcome of :meth:`CurveModel.sampling`: the count and fit taken, and the test that decided."""
+
+    fit: CurveFit
+    count: int
+    free_count: int
+    terms: int
+    f_stat: float
+    p_value: float
+    accepted: bool
+
+
+def _noise_variance(points: np.ndarray) -> float:
+    """The data's noise variance per coordinate, without a model: the mean square of the normalised fourth
+    differences (``(1, -4, 6, -4, 1) / sqrt(70)``: unit variance on white noise; a smooth curve's part is of
+    the order of the sample spacing to the fourth, far below)."""
+    diff = np.diff(points, n=4, axis=0) / math.sqrt(70.0)
+    return float(np.mean(diff ** 2)) if len(diff) else 0.0
 
 
 class CurveModel:
@@ -210,6 +237,89 @@ class CurveModel:
             return self._measure(key, pts, f).both_max / self.diag > limit, f.rms
 
         return min((fit, quick.fit), key=rank)
+
+    def _free_ends(self, pts: np.ndarray, fit: CurveFit) -> CurveFit:
+        return tangent_refine(pts, fit, self.degree, lo=self.lo, hi=self.hi, free_ends=True)
+
+    def sampling(self, key: Key, n_free: int) -> SamplingChoice | None:
+        """The count of a noisy open curve when its samples are evenly spaced in parameter up to a smooth warp.
+
+        The free model (every sample's foot-point parameter an unknown, the BIC-like count ``n_free``) cannot
+        separate counts near the noise's detection limit (a 12-point curve at 0.7 % noise: 9 and 12 points are
+        within the likelihood ratio's reach). When the samples are evenly spaced in the curve's parameter (the
+        paper's index-wise correspondence) that spacing is information too. Decision rule:
+
+        1. *Sampling model*: sample ``i`` is matched to the curve at ``s_i + W(s_i) c`` (:func:`warped_fit`,
+           ``terms = 0..WARP_TERMS`` warp coefficients ``c``, every control point free, ends included). Its
+           residuals are the full 2D/3D offsets of independent samples, so an ordinary BIC applies:
+           ``m d ln(RSS / m) + (n d + terms) ln(m d)`` (``d`` coordinates; RSS per point floored at the cost's
+           ``tolerance``) picks ``(n, terms)``. The terms are nuisance parameters nested in each other, with
+           evenly spaced samples (the paper's assumption) the simplest: the fewest terms whose best BIC is within
+           ``BIC_TIE`` of the least are taken, with their best count (a warp can trade for control points at
+           the noise's detection limit, and a BIC difference below 2 is no evidence either way).
+        2. *Test*: the sampling model is nested in the free model with the same ``n`` and free ends (the warped
+           parameters are one choice of the free ones). Under the sampling model, with Gaussian noise,
+           ``F = ((RSS_w - RSS_free) / (m - 2 - terms)) / (RSS_free / (m d - n d - (m - 2)))`` follows an
+           F distribution; the sampling model is rejected when its p-value is below ``SAMPLING_ALPHA``
+           (samples thinned at random, bunched unevenly, or arc-length spaced along a curve whose warp the
+           terms cannot follow).
+        3. Accepted: ``n`` points placed by the sampling model (its maximum-likelihood curve, which uses the
+           spacing: closer to the noise-free curve than the free model's); rejected: ``n_free`` points, the free
+           model's least squares with free end control points. Either way the noisy end samples do not pin the
+           curve's ends.
+
+        None (the free model's fit stands) on exact data (RMS within the tolerance), on residuals that are model
+        error rather than noise (their squared RMS per normal coordinate above ``NOISE_RATIO`` times the data's
+        difference-based noise variance: smooth curves that are not B-splines leave 200-6000 times it, noisy
+        B-splines about 1), closed curves, subsampled searches (their points are not evenly spaced by index)
+        and too few points for the test.
+        """
+        if key == PERIODIC or self.closed or self.full is not None or key in self._densified:
+            return None
+        pts = self.segment_points(key)
+        m, dim = pts.shape
+        floor = max(self.config.tolerance, 1e-9) * self.diag
+        base = self.refined(key, n_free)
+        if base.rms <= floor or m < 40 or base.rms ** 2 > NOISE_RATIO * (dim - 1) * _noise_variance(pts):
+            return None
+        top = min(self.max_count(key), 2 * n_free + 2)
+        lo = self.min_count(key)
+        warp = warp_basis(m, WARP_TERMS)
+        s = np.linspace(0.0, 1.0, m)
+        guess = np.linalg.lstsq(warp, np.sort(base.params) - s, rcond=None)[0]  # the free fit's warp
+
+        def bic(sse: float, n: int, terms: int) -> float:
+            return m * dim * math.log(max(sse / m, floor ** 2)) + (n * dim + terms) * math.log(m * dim)
+
+        scores: dict[tuple[int, int], tuple[float, CurveFit]] = {}
+        prev: list[np.ndarray] = [np.zeros(0)] * (WARP_TERMS + 1)
+        for n in range(lo, top + 1):
+            coef = np.zeros(0)
+            for terms in range(WARP_TERMS + 1):
+                fit, coef = warped_fit(pts, n, terms, self.degree, starts=(coef, prev[terms], guess[:terms]))
+                prev[terms] = coef
+                scores[(n, terms)] = (bic(float(np.sum(fit.distances ** 2)), n, terms), fit)
+            if min(scores, key=lambda nk: scores[nk][0])[0] + 4 < n:  # four counts past the best: it only grows
+                break
+        least = min(v[0] for v in scores.values())
+        terms = min(k for (_, k), v in scores.items() if v[0] <= least + BIC_TIE)
+        n = min((c for c, k in scores if k == terms), key=lambda c: scores[(c, terms)][0])
+        warped = scores[(n, terms)][1]
+        df1, df2 = m - 2 - terms, m * dim - n * dim - (m - 2)
+        if df2 < 10:
+            return None
+        spline = bspline.make_spline(warped.ctrl, self.degree, False)
+        params, dist = spline_foot_points(spline, pts, warped.params, iterations=2, periodic=False)
+        starts = [CurveFit(warped.ctrl, params, dist, False)]
+        if n <= self.max_count(key):
+            starts.append(self.refined(key, n))
+        free = min((self._free_ends(pts, f) for f in starts), key=lambda f: f.rms)
+        sse_w, sse_f = float(np.sum(warped.distances ** 2)), float(np.sum(free.distances ** 2))
+        f_stat = max(0.0, (sse_w - sse_f) / df1) / max(sse_f / df2, 1e-300)
+        p_value = float(stats.f.sf(f_stat, df1, df2))
+        accepted = p_value >= SAMPLING_ALPHA
+        chosen = warped if accepted else self._free_ends(pts, base)
+        return SamplingChoice(chosen, n if accepted else n_free, n_free, terms, f_stat, p_value, accepted)
 
     # --- counts ----------------------------------------------------------------------------------------------
     def meets(self, key: Key, n: int, limit: float) -> bool:
