@@ -78,3 +78,21 @@ def test_staged_moves_merge_within_their_time_and_replay_to_the_same_cage():
         for op in history:
             replayed = op.apply(replayed)
         assert np.abs(replayed.vertices - goal).max() <= 1e-9
+
+
+def test_refinement_stops_before_a_history_no_result_can_hold(monkeypatch):
+    import gsr_cad.reconstruct.refine as refine_module
+
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    rng = np.random.default_rng(1)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
+    problem.max_faces = 400
+    free, _ = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
+    limit = len(free) - 1  # one op fewer than the unbounded refinement's history
+    monkeypatch.setattr(refine_module, "MAX_OPS", limit)
+    genome, levels = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
+    assert len(genome) <= limit
+    assert np.abs(problem.control_mesh(genome).vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal

@@ -18,7 +18,8 @@ proposal gains, several edge loops are added at once (:func:`_fallback`). Faces 
 unsound (a split of a skewed cage) keep their vertices; the rest of the cage still moves. The fits' back
 direction projects onto a fine mesh target's triangles near a bounded area sample of it
 (:class:`~gsr_cad.geometry.surface_distance.NearTriangles`), the reported metrics onto all of them. Levels
-stop once the distance reaches the goal, the time or face budget runs out, or nothing gains.
+stop once the distance reaches the goal, the time or face budget runs out, nothing gains, or a level's history
+would exceed what a result holds (``MAX_OPS``).
 
 History: the structural ops replay on the geometry the search left them (the template's, moved by the
 search's ops), where they apply cleanly, followed by the moves of the final fit (in stages when the
@@ -44,6 +45,7 @@ from ..geometry.subdivision import get_catmull_clark
 from ..ops.mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, TranslateVertex
 from ..ops.mesh_conn import mesh_view
 from ..ops.mesh_kernel import distinct_rings, edge_ring
+from .result import MAX_OPS
 
 TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
@@ -380,6 +382,8 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         if chosen is None:
             break
         ops, base, base_state, step, reached, c = chosen
+        if len(step) > MAX_OPS:  # a history no result may hold (moves staged past merging): the last level stands
+            break
         full, mesh, cost = step, reached, c
         levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
         if record is not None:

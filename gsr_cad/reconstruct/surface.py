@@ -95,7 +95,7 @@ from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
 from .refine import _inradius, refine
-from .result import Result
+from .result import MAX_OPS, Result
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
 _STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
@@ -1254,6 +1254,9 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     late = None if deadline is None or not final else deadline - tail(problem.control_mesh(final).n_vertices)
     if final and not hurry() and (late is None or time.perf_counter() < late):
         final = problem.pruned(problem.grouped(problem.merged(final), late))
+    if len(final) > MAX_OPS:  # no result holds it: the closest front cage whose history fits
+        fits = sorted((entry for entry in pareto if len(entry[2]) <= MAX_OPS), key=lambda entry: entry[1])
+        final = fits[0][2] if fits else best
     refine_seconds = time.perf_counter() - refined_at
     control = problem.control_mesh(final)
     metrics = surface_metrics(control, tgt, config)
