@@ -28,6 +28,18 @@ def _fine_cube() -> PolyMesh:
     return get_catmull_clark(cube, 2, "all").refine(cube.vertices)  # 98 control vertices
 
 
+def _blob() -> tuple:
+    """A randomly scaled once-refined cube's limit surface as a target, and its refinement problem."""
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    rng = np.random.default_rng(1)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
+    problem.max_faces = 400
+    return target, problem
+
+
 @pytest.mark.parametrize("amount, per_vertex", [(1.0, 1.1), (1.5, 1.1)])
 def test_moves_that_fold_in_index_order_are_one_per_vertex_and_replay_exactly(amount, per_vertex):
     mesh = _fine_cube()
@@ -45,13 +57,7 @@ def test_moves_that_fold_in_index_order_are_one_per_vertex_and_replay_exactly(am
 
 
 def test_a_refined_history_has_about_one_move_per_control_vertex():
-    cube = _cube()
-    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
-    rng = np.random.default_rng(1)
-    truth = fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
-    target = surface_target(limit_mesh(truth, 3), "blob")
-    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
-    problem.max_faces = 400
+    target, problem = _blob()
     genome, levels = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
     control = problem.control_mesh(genome)
     assert control.n_vertices > 8 and len(levels) >= 2
@@ -83,13 +89,7 @@ def test_staged_moves_merge_within_their_time_and_replay_to_the_same_cage():
 def test_refinement_stops_before_a_history_no_result_can_hold(monkeypatch):
     import gsr_cad.reconstruct.refine as refine_module
 
-    cube = _cube()
-    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
-    rng = np.random.default_rng(1)
-    truth = fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
-    target = surface_target(limit_mesh(truth, 3), "blob")
-    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
-    problem.max_faces = 400
+    target, problem = _blob()
     free, _ = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
     limit = len(free) - 1  # one op fewer than the unbounded refinement's history
     monkeypatch.setattr(refine_module, "MAX_OPS", limit)
