@@ -199,3 +199,25 @@ def test_ctrl_c_with_a_process_pool(tmp_path):
     err = "".join(run.err)
     assert "Traceback" not in err and run.proc.returncode in (0, 130), err
     assert _check_out(out, "surface", killed=False) in ("complete", "untouched")
+
+
+def test_a_ctrl_c_that_lands_in_a_finalizer_still_stops_the_command(capfd):
+    """A signal whose KeyboardInterrupt is raised inside ``__del__`` (Python swallows it there and prints a
+    traceback) reaches the command's own code instead."""
+    from gsr_cad.cli import signals
+
+    class Finalized:
+        def __del__(self):
+            signal.raise_signal(signal.SIGINT)
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with signals.handled():
+                Finalized()  # dropped at once: the signal's KeyboardInterrupt is raised in its __del__
+                for _ in range(200):
+                    time.sleep(0.005)
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert "Traceback" not in capfd.readouterr().err

@@ -38,6 +38,25 @@ def _handler(signum: int, frame) -> None:
         raise KeyboardInterrupt
 
 
+def _unraisable_hook(previous: Callable) -> Callable:
+    """A hook for ``sys.unraisablehook``: a KeyboardInterrupt that :func:`_handler` raised inside a finalizer
+    (a weakref callback or ``__del__``, which Python swallows and prints as a traceback while the command goes
+    on) is delivered again, to the code that runs next; anything else goes to ``previous``."""
+    def hook(info) -> None:
+        if info.exc_type is KeyboardInterrupt:  # a signal now would land in this hook: one in a moment instead
+            signal.setitimer(signal.ITIMER_REAL, REDELIVER_SECONDS)
+            return
+        previous(info)
+    return hook
+
+
+REDELIVER_SECONDS = 0.005
+
+
+def _redelivered(signum: int, frame) -> None:
+    raise KeyboardInterrupt
+
+
 @contextlib.contextmanager
 def handled() -> Iterator[None]:
     """Install the SIGINT/SIGTERM handlers (main thread only) for the duration of a CLI command."""
@@ -45,12 +64,18 @@ def handled() -> Iterator[None]:
         yield
         return
     previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous_hook, previous_alarm = sys.unraisablehook, signal.getsignal(signal.SIGALRM)
     _state.count, _state.cooperative, _state.deadline = 0, False, None
     for s in previous:
         signal.signal(s, _handler)
+    signal.signal(signal.SIGALRM, _redelivered)
+    sys.unraisablehook = _unraisable_hook(previous_hook)
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous_alarm)
         for s, h in previous.items():  # once stopping, later signals must not turn the exit into a traceback
             signal.signal(s, signal.SIG_IGN if _state.count else h)
 
