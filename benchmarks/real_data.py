@@ -28,6 +28,7 @@ skips those).
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
 import shutil
 import subprocess
@@ -124,6 +125,9 @@ def _row(name: str, target, options: dict, args: argparse.Namespace) -> str:
         name += (f" (genus {m['target_genus']} / {m['result_genus']}"
                  f"{'' if m['target_genus'] == m['result_genus'] else ' !'})")
     seconds = time.perf_counter() - start
+    if args.metrics is not None:  # the whole result.json metrics, to attribute the time and read the levels
+        write_text(args.metrics / f"{Path(name.split(' ')[0]).stem}.json",
+                   json.dumps({"wall_seconds": seconds, **m}, indent=1, default=str))
     b = baseline(target, m["n_control_vertices"])
     bm = b.metrics
     base = ("| - | - | - |" if b.control is None else
@@ -144,9 +148,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--no-front-baselines", dest="front_baselines", action="store_false",
                     help="skip the baseline at every front point (only at gsr's result)")
+    ap.add_argument("--metrics", type=Path, help="folder to write each target's result metrics to (JSON)")
     args = ap.parse_args(argv)
     if args.jobs < 1:
         ap.error("--jobs must be at least 1")
+    if args.metrics is not None:
+        args.metrics.mkdir(parents=True, exist_ok=True)
     header = ("| target | faces | gsr V | ops | data->fit mean / max | fit->data mean / max | s "
               "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance / baseline (its V)) |")
     lines = ["# Real-data surface benchmark", "", environment(), f"Load average at start: {load_average()}; "
