@@ -16,7 +16,8 @@ TINY_CURVE = ("--generations", "2", "--population", "4", "--initial-population",
 """Settings that make a curve run take well under a second."""
 TINY_SURFACE = ("--generations", "1", "--population", "4", "--initial-population", "4", "--n-parents", "2",
                 "--max-children", "1", "--n-perturb", "1", "--n-newcomers", "1", "--polish-rounds", "0",
-                "--final-polish-rounds", "1", "--no-simplify-history", "--formats", "none", "--quiet")
+                "--final-polish-rounds", "1", "--no-simplify-history", "--refine-max-faces", "40", "--formats", "none",
+                "--quiet")
 """Settings that make a surface run take a second or two."""
 
 

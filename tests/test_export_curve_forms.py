@@ -50,6 +50,8 @@ def _ring3d() -> np.ndarray:
     return np.c_[np.cos(s), np.sin(s), 0.3 * np.sin(2.0 * s)]
 
 
+pytestmark = pytest.mark.xdist_group("curve_forms")  # one worker builds the module's fixtures once
+
 CASES = {"square": (_square, True, True, 2), "vee3d": (_vee3d, False, True, 3), "helix": (_helix, False, False, 3),
          "ring3d": (_ring3d, True, False, 3), "square-chaikin": (_square, True, True, 2)}
 """name: (data, closed, cornered, dimension) as the reconstruction must find them (a "-chaikin" case is

@@ -162,9 +162,15 @@ def test_signal_leaves_complete_or_untouched_out(tmp_path, kind, sig, when):
 def test_second_ctrl_c_still_leaves_a_result(tmp_path):
     """Two Ctrl-C in the search: the best so far is still written (not an empty folder)."""
     out = tmp_path / "out"
-    # a search that is still running after 4 s (the inset-extrude target alone is fitted within 2 s)
-    run = Watched([*_argv("surface", tmp_path, out), "--generations", "200", "--threshold", "0"], tmp_path)
-    time.sleep(4.0)
+    # threshold 0 keeps the search running; the checkpoint appears once a generation is done, so there is a
+    # best so far to keep however slow the machine is
+    checkpoint = tmp_path / "search.ckpt"
+    run = Watched([*_argv("surface", tmp_path, out), "--generations", "200", "--threshold", "0",
+                   "--checkpoint", checkpoint], tmp_path)
+    end = time.monotonic() + 120.0
+    while not checkpoint.exists() and run.proc.poll() is None and time.monotonic() < end:
+        time.sleep(0.05)
+    assert checkpoint.exists(), "".join(run.err)
     run.proc.send_signal(signal.SIGINT)
     time.sleep(0.2)
     run.proc.send_signal(signal.SIGINT)

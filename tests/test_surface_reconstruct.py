@@ -90,16 +90,20 @@ def test_extended_is_reconstructed_to_the_papers_accuracy(kind, tmp_path):
 
 
 def test_same_seed_same_result_serial_or_process_pool():
+    """Same seed, same search, polish and refinement (to a few levels: the cage is bounded so the three runs
+    stay short), whether the genomes are evaluated here or in a process pool."""
     s = random_ops_sample(3)
     target = surface_target(s.target)
-    a = reconstruct_surface(target, seed=7, **SMALL)
-    b = reconstruct_surface(target, seed=7, **SMALL)
+    small = dict(SMALL, refine_max_faces=120)
+    a = reconstruct_surface(target, seed=7, **small)
+    assert a.metrics["refinement"], "the refinement ran"
+    b = reconstruct_surface(target, seed=7, **small)
     def costs(result):
         return [(h["best_fitness"], h["mean_fitness"]) for h in result.history]
 
     assert a.genome == b.genome and costs(a) == costs(b)
     with ProcessPoolEvaluator(max_workers=2) as pool:
-        c = reconstruct_surface(target, seed=7, evaluator=pool, **SMALL)
+        c = reconstruct_surface(target, seed=7, evaluator=pool, **small)
     assert c.genome == a.genome and costs(c) == costs(a) and c.metrics["fitness"] == a.metrics["fitness"]
 
 

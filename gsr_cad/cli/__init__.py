@@ -115,7 +115,7 @@ def _report(exc: Exception) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    with warnings.catch_warnings(), signals.handled(), contextlib.ExitStack() as stack:
+    with warnings.catch_warnings(), signals.handled(final=argv is None), contextlib.ExitStack() as stack:
         warnings.showwarning = _show_warning
         warnings.simplefilter("always", GsrWarning)
         try:

@@ -58,8 +58,12 @@ def _redelivered(signum: int, frame) -> None:
 
 
 @contextlib.contextmanager
-def handled() -> Iterator[None]:
-    """Install the SIGINT/SIGTERM handlers (main thread only) for the duration of a CLI command."""
+def handled(final: bool = False) -> Iterator[None]:
+    """Install the SIGINT/SIGTERM handlers (main thread only) for the duration of a CLI command.
+
+    ``final`` (the command is the whole process): afterwards the signals are ignored, so one that comes while
+    the finished process shuts down cannot kill it by signal instead of its exit code.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -77,7 +81,7 @@ def handled() -> Iterator[None]:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, previous_alarm)
         for s, h in previous.items():  # once stopping, later signals must not turn the exit into a traceback
-            signal.signal(s, signal.SIG_IGN if _state.count else h)
+            signal.signal(s, signal.SIG_IGN if _state.count or final else h)
 
 
 def stop_requested() -> bool:
