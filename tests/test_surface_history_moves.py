@@ -79,7 +79,11 @@ def test_staged_moves_merge_within_their_time_and_replay_to_the_same_cage():
     assert len(merged) <= 0.7 * len(steps)  # most vertices keep one move; the ones that would fold, more
     late = _compact_moves(mesh, steps, until=time.perf_counter() - 1.0)  # no time: nothing merged
     assert list(late) == steps
-    for history in (merged, late):
+    spent = _compact_moves(mesh, steps, budget=0)  # no replays allowed: nothing merged
+    assert list(spent) == steps
+    some = _compact_moves(mesh, steps, budget=4 * len(steps))  # a few merges (each replays ~all), deterministic
+    assert len(merged) <= len(some) < len(steps) and some == _compact_moves(mesh, steps, budget=4 * len(steps))
+    for history in (merged, late, some):
         replayed = mesh
         for op in history:
             replayed = op.apply(replayed)

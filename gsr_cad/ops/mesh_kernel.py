@@ -195,14 +195,29 @@ def _index(value: int, count: int, what: str, kind: str) -> int:
 def _moved(view: MeshView, P: list[list[float]], moved: Iterable[int], newell: list) -> PolyMesh:
     """The input mesh with the ``moved`` rows of ``P``: same connectivity, topology and key."""
     mesh = view.mesh
+    moved = tuple(moved)
     vertices = mesh.vertices.copy()
     for c in moved:
         vertices[c] = P[c]
     vertices.setflags(write=False)
     out = PolyMesh._trusted(vertices, mesh.corners, mesh.offsets, mesh._topology, mesh.connectivity_key,
                             mesh._creases)
-    remember_view(MeshView(out, P, newell, view.conn, None))
+    remember_view(MeshView(out, P, newell, view.conn, _moved_bounds(view, P, moved)))
     return out
+
+
+def _moved_bounds(view: MeshView, P: list[list[float]], moved: tuple[int, ...]) -> tuple[float, ...] | None:
+    """The bounds after moving the ``moved`` rows, when known without a full pass: every old position was strictly
+    inside the old bounds (so none of them set a min or max), and the new ones extend them exactly; None
+    (computed again when needed) otherwise. A cage's vertex moves are most often inside."""
+    b = view.bounds
+    if b is None:
+        return None
+    for c in moved:
+        x, y, z = view.P[c]
+        if not (b[0] < x < b[3] and b[1] < y < b[4] and b[2] < z < b[5]):
+            return None
+    return _extended(b, [P[c] for c in moved])
 
 
 def _carried(mesh: PolyMesh, conn: MeshConn, inherit: dict[tuple[int, int], tuple[int, int]],

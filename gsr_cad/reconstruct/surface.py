@@ -200,7 +200,8 @@ class SurfaceProblem:
         :meth:`_back`; the search keeps the cheaper slack everywhere)."""
         # a template finer than the limit still gets room for a few ops
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
-        self._states: OrderedDict[tuple, PolyMesh | None] = OrderedDict()
+        self._states: OrderedDict[tuple, tuple[int, PolyMesh | None]] = OrderedDict()
+        self._last_node = 0  # the number of the latest replayed prefix (see :meth:`_step`)
         proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
                      if set("CR") & set(config.op_kinds) else None)
         self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
@@ -211,37 +212,56 @@ class SurfaceProblem:
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_states"] = OrderedDict()
+        state["_last_node"] = 0
         state["evaluated"] = {}
         return state
 
     # --- replay with a prefix cache ----------------------------------------------------------------------
-    def _step(self, prefix: tuple, state: PolyMesh, op) -> PolyMesh | None:
-        """``op`` applied after ``prefix`` (whose state is ``state``), or None when it cannot apply."""
-        key = prefix + (op,)
+    def _step(self, node: int, state: PolyMesh, op) -> tuple[int, PolyMesh | None]:
+        """``op`` applied to ``state``, the mesh of the replayed prefix numbered ``node``: the number of the longer
+        prefix and its mesh, or ``(node, None)`` when it cannot apply.
+
+        Prefixes are numbered as they are first replayed (the template is 0) and cached by ``(node, op)``: a
+        lookup hashes one op, not the whole prefix, so a replay costs linear time in the genome's length (a
+        refined cage's history has thousands of ops). Numbers are never reused, so an evicted prefix's
+        descendants are merely replayed again."""
+        key = (node, op)
         cache = self._states
-        if key in cache:
+        hit = cache.get(key)
+        if hit is not None:
             cache.move_to_end(key)
-            return cache[key]
+            return hit
         try:
             nxt = op.apply(state)
             if nxt.n_faces > self.max_faces:
                 nxt = None
         except OpError:
             nxt = None
-        cache[key] = nxt
+        if nxt is None:
+            out = (node, None)
+        else:
+            self._last_node += 1
+            out = (self._last_node, nxt)
+        cache[key] = out
         if len(cache) > _STATE_CACHE:
             cache.popitem(last=False)
-        return nxt
+        return out
+
+    def _replay(self, genome: tuple) -> tuple[list, int, PolyMesh]:
+        """The ops of ``genome`` that apply in order (others skipped), their prefix's number and its mesh."""
+        kept: list = []
+        node, state = 0, self.template
+        for op in genome:
+            child, nxt = self._step(node, state, op)
+            if nxt is not None:
+                kept.append(op)
+                node, state = child, nxt
+        return kept, node, state
 
     def walk(self, genome: tuple) -> tuple[tuple, PolyMesh]:
         """The ops of ``genome`` that apply in order (others skipped) and the resulting control mesh."""
-        kept: tuple = ()
-        state = self.template
-        for op in genome:
-            nxt = self._step(kept, state, op)
-            if nxt is not None:
-                kept, state = kept + (op,), nxt
-        return kept, state
+        kept, _, state = self._replay(genome)
+        return tuple(kept), state
 
     def control_mesh(self, genome: tuple) -> PolyMesh:
         """The control mesh a (repaired) genome builds; OpError if an op cannot apply."""
@@ -334,15 +354,16 @@ class SurfaceProblem:
 
     def repair(self, genome: tuple, rng: np.random.Generator) -> tuple:
         """The ops that apply (and keep the mesh within ``max_control_faces``), topped up to ``min_ops``."""
-        kept, state = self.walk(genome)
+        kept, node, state = self._replay(genome)
         attempts = 0
         while len(kept) < self.config.min_ops and attempts < 50:
             attempts += 1
             op = random_op(rng, state, self.diag, self.config.op_kinds, self.ranges, *self.creases)
-            nxt = self._step(kept, state, op)
+            child, nxt = self._step(node, state, op)
             if nxt is not None:
-                kept, state = kept + (op,), nxt
-        return kept
+                kept.append(op)
+                node, state = child, nxt
+        return tuple(kept)
 
     def perturb(self, gene, rng: np.random.Generator):
         """The same op with its parameters nudged by ``perturb_rel`` of the diagonal."""
@@ -569,8 +590,9 @@ class SurfaceProblem:
         already there: one op each, a few more only for the vertices that need them); failing that, every
         vertex follows the straight path between the two meshes in stages; failing that too, the first
         attempt's partial moves stand. Staged moves are then merged vertex by vertex where the history still
-        replays (:func:`_compact_moves`), for at most ``COMPACT_SHARE`` times as long as the stages took
-        (plus a second). No staged attempt or merge starts after ``deadline`` (a ``perf_counter`` value).
+        replays (:func:`_compact_moves`), replaying at most ``COMPACT_SHARE`` times as many ops as the stages
+        applied (plus ``COMPACT_EXTRA``): a count, not a time, so that the same seed gives the same history on any
+        machine. No staged attempt or merge starts after ``deadline`` (a ``perf_counter`` value).
         """
         tol = 1e-12 * self.diag
         goal = np.asarray(goal, dtype=np.float64)
@@ -583,15 +605,14 @@ class SurfaceProblem:
                 if deadline is not None and time.perf_counter() >= deadline:  # no staged attempt starts after it
                     return moves, current, refused
                 trial, steps = origin, list(ops)
-                began = time.perf_counter()
                 for k in range(1, stages + 1):
                     stage, trial, left = _ordered_moves(trial, start + (k / stages) * (goal - start), tol)
                     steps += stage
                     if left:
                         break
                 else:
-                    until = time.perf_counter() + COMPACT_SHARE * (time.perf_counter() - began) + 1.0
-                    return _compact_moves(state, steps, until if deadline is None else min(until, deadline)), trial, 0
+                    budget = int(COMPACT_SHARE * stages * state.n_vertices) + COMPACT_EXTRA
+                    return _compact_moves(state, steps, deadline, budget), trial, 0
         return moves, current, refused
 
     def _bases(self, genome: tuple, mesh: PolyMesh, compact: bool) -> list[tuple[tuple, PolyMesh]]:
@@ -685,29 +706,52 @@ class SurfaceProblem:
 
     def merged(self, genome: tuple) -> tuple:
         """``genome`` with each run of consecutive ``translate_vertex`` ops merged into one op per vertex (its
-        net move), run by run where the result still replays to the same mesh (within 1e-12 of the
-        diagonal): the same modelling history, fewer steps."""
+        net move), run by run where the merged moves apply and reach the run's mesh (within 1e-13 of the
+        diagonal), and the whole history still replays to the same mesh (within 1e-12): the same modelling
+        history, fewer steps. One forward replay (each run's ops applied twice at most), so thousands of ops
+        cost seconds; ``genome`` itself when the merged history does not hold."""
         genome = tuple(genome)
         want = self.control_mesh(genome).vertices
-        runs, i = [], 0
-        while i < len(genome):
-            j = i
-            while j < len(genome) and isinstance(genome[j], TranslateVertex):
-                j += 1
-            if j - i > 1:
-                runs.append((i, j))
-            i = max(j, i + 1)
-        out = genome
-        for start, stop in reversed(runs):  # from the end, so earlier indices stay valid
-            net: dict[int, np.ndarray] = {}
-            for op in out[start:stop]:
-                net[op.vertex] = net.get(op.vertex, np.zeros(3)) + np.asarray(op.delta)
-            moves = tuple(TranslateVertex(v, tuple(float(x) for x in d)) for v, d in net.items() if np.any(d != 0.0))
-            candidate = out[:start] + moves + out[stop:]
-            kept, state = self.walk(candidate)
-            if len(kept) == len(candidate) and np.abs(state.vertices - want).max() <= 1e-12 * self.diag:
-                out = candidate
-        return out
+        close = 1e-13 * self.diag
+        out: list = []
+        state = self.template
+        i = 0
+        try:
+            while i < len(genome):
+                j = i
+                while j < len(genome) and isinstance(genome[j], TranslateVertex):
+                    j += 1
+                if j - i < 2:
+                    state = genome[i].apply(state)
+                    out.append(genome[i])
+                    i += 1
+                    continue
+                after = state
+                for op in genome[i:j]:
+                    after = op.apply(after)
+                net: dict[int, np.ndarray] = {}
+                for op in genome[i:j]:
+                    net[op.vertex] = net.get(op.vertex, np.zeros(3)) + np.asarray(op.delta)
+                moves = [TranslateVertex(v, tuple(float(x) for x in d)) for v, d in net.items() if np.any(d != 0.0)]
+                trial = state
+                try:
+                    for op in moves:
+                        trial = op.apply(trial)
+                    ok = np.abs(trial.vertices - after.vertices).max() <= close
+                except OpError:
+                    ok = False
+                out.extend(moves if ok else genome[i:j])
+                state = trial if ok else after
+                i = j
+        except OpError:
+            return genome
+        out_t = tuple(out)
+        if out_t == genome:
+            return genome
+        kept, final = self.walk(out_t)
+        if len(kept) != len(out_t) or np.abs(final.vertices - want).max() > 1e-12 * self.diag:
+            return genome
+        return out_t
 
 
 PROTRUSION_DEPTHS = (0.2, 0.35, 0.5)
@@ -736,8 +780,10 @@ _SMOOTH_START = 1e-2  # first weight of the step's smoothness (relative to the s
 
 
 COMPACT_SHARE = 2.0
-"""Merging staged moves may take this many times as long as finding them (a bone's 898-vertex cage in 16 stages:
-14,000 moves, whose merge, one vertex at a time, ran for more than ten minutes of a 300 s budget)."""
+"""Merging staged moves may replay this many times as many ops as finding them tried (one per vertex and stage):
+a bone's 898-vertex cage in 16 stages made 14,000 moves, whose unbounded merge, one vertex at a time, ran for more
+than ten minutes of a 300 s budget."""
+COMPACT_EXTRA = 2000  # op replays every merge may use besides (small cages merge completely)
 
 
 def _ordered_moves(state: PolyMesh, goal: np.ndarray, tol: float) -> tuple[tuple, PolyMesh, int]:
@@ -752,19 +798,22 @@ def _ordered_moves(state: PolyMesh, goal: np.ndarray, tol: float) -> tuple[tuple
     return moves, current, refused
 
 
-def _compact_moves(state: PolyMesh, moves: list[TranslateVertex], until: float | None = None) -> tuple:
+def _compact_moves(state: PolyMesh, moves: list[TranslateVertex], until: float | None = None,
+                   budget: int | None = None) -> tuple:
     """``moves`` (which replay on ``state``) with each vertex's several moves merged into one, at the place of
     its last or its first, where the whole sequence still replays: the same end state, fewer steps.
 
     Only the stretch between a vertex's first and last move is replayed (after its last one every vertex is
     where it was). Each merge still replays up to the whole sequence (hundreds of vertices in 16 stages: a
-    second each), so no merge starts after ``until`` (a ``perf_counter`` value); the rest stay as they are."""
+    second each), so no merge starts after ``until`` (a ``perf_counter`` value) or once ``budget`` op replays are
+    spent (None: no limit); the rest stay as they are."""
     moves = list(moves)
     before = [state]  # before[i]: the state op i applies to
     for op in moves:
         before.append(op.apply(before[-1]))
+    spent = 0
     for vertex in dict.fromkeys(op.vertex for op in moves):
-        if until is not None and time.perf_counter() >= until:
+        if (until is not None and time.perf_counter() >= until) or (budget is not None and spent >= budget):
             break
         at = [i for i, op in enumerate(moves) if op.vertex == vertex]
         if len(at) < 2:
@@ -777,6 +826,7 @@ def _compact_moves(state: PolyMesh, moves: list[TranslateVertex], until: float |
             states = [before[first]]
             try:
                 for op in head:
+                    spent += 1
                     states.append(op.apply(states[-1]))
             except OpError:
                 continue
