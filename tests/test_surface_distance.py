@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -13,7 +14,8 @@ from trimesh.triangles import closest_point as trimesh_closest_point
 from gsr_cad.errors import InputError
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
-from gsr_cad.geometry.surface_distance import (NearTriangles, TriangleSet, closest_on_triangles, cloud_distance,
+from gsr_cad.geometry.surface_distance import (NearTriangles, TriangleSet, chord_sag, closest_on_triangles,
+                                               cloud_distance,
                                                mixed_mean_distance, point_to_surface, sampling_radius,
                                                triangulate)
 
@@ -244,3 +246,26 @@ def test_near_triangles_agree_with_the_exact_closest_points(count):
     spacing = np.sqrt(area / (count + len(tris)))  # the samples' spacing
     assert np.abs(d - exact).max() < 0.25 * spacing  # a neighbour of the nearest triangle at worst
     assert np.mean(d > exact + 1e-9 * mesh.diagonal) < 0.05 and np.mean(d - exact) < 1e-3 * spacing
+
+
+@pytest.mark.parametrize("subdivisions", [1, 2, 3, 4])
+def test_chord_sag_bounds_how_far_the_sphere_lies_from_its_tessellation(subdivisions):
+    """Points of the unit sphere are within (about) their nearest triangle's sag of an icosphere, at every
+    density, and the sag is not much larger than that: a fit may leave exactly the tessellation's own error."""
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    sag = chord_sag(mesh.vertices, mesh.faces)
+    p = np.random.default_rng(subdivisions).normal(size=(5000, 3))
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    near = TriangleSet(mesh.vertices, mesh.faces).closest(p)
+    ratio = near.distance / sag[near.triangle]
+    assert ratio.max() <= 1.15 and ratio.mean() >= 0.5
+
+
+def test_chord_sag_is_zero_on_flat_faces_and_sharp_edges():
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    assert not chord_sag(box.vertices, box.faces).any()
+    cylinder = trimesh.creation.cylinder(radius=1.0, height=2.0, sections=32)
+    sag = chord_sag(cylinder.vertices, cylinder.faces)
+    normals = cylinder.face_normals
+    caps = np.abs(normals[:, 2]) > 0.99
+    assert not sag[caps].any() and (sag[~caps] > 0).all()

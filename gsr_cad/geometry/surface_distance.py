@@ -254,11 +254,11 @@ SHARP_DEGREES = 30.0
 """Dihedral angle (degrees) above which an edge is a feature edge (a CAD part's sharp edge)."""
 
 
-def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Which triangles lie on a planar face of a part: each of their edges is shared with a coplanar
-    neighbour (``FLAT_DEGREES``), is a feature edge (``SHARP_DEGREES``) or is a boundary. Their interiors are
-    the surface itself, unlike the chords of a smooth surface's tessellation, whose edges bend by a few
-    degrees."""
+def _edge_angles(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                          np.ndarray, np.ndarray]:
+    """Per distinct edge of a triangle mesh: the cosine of the angle between its two faces' normals (1 unless
+    exactly two faces share it), its face count and length; then each triangle corner's edge index ``(m, 3)``
+    and whether each triangle has area."""
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     normal = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
@@ -266,7 +266,7 @@ def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     normal = normal / np.where(length > 0, length, 1.0)[:, None]
     edges = np.sort(np.stack([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
     owner = np.repeat(np.arange(len(t)), 3)
-    _, key, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    unique, key, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
     key = key.ravel()
     order = np.argsort(key, kind="stable")
     starts = np.flatnonzero(np.r_[True, np.diff(key[order]) != 0])
@@ -274,9 +274,51 @@ def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     cos = np.ones(len(count))
     a, b = owner[order[starts[pair]]], owner[order[starts[pair] + 1]]
     cos[key[order[starts[pair]]]] = np.einsum("ij,ij->i", normal[a], normal[b])
+    edge_length = np.linalg.norm(v[unique[:, 1]] - v[unique[:, 0]], axis=1)
+    return cos, count, edge_length, key.reshape(-1, 3), length > 0
+
+
+def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Which triangles lie on a planar face of a part: each of their edges is shared with a coplanar
+    neighbour (``FLAT_DEGREES``), is a feature edge (``SHARP_DEGREES``) or is a boundary. Their interiors are
+    the surface itself, unlike the chords of a smooth surface's tessellation, whose edges bend by a few
+    degrees."""
+    cos, count, _, corner_edges, has_area = _edge_angles(vertices, triangles)
     flat = cos > np.cos(np.radians(FLAT_DEGREES))
     sharp = (cos < np.cos(np.radians(SHARP_DEGREES))) | (count != 2)
-    return (flat | sharp)[key].reshape(-1, 3).all(axis=1) & (length > 0)
+    return (flat | sharp)[corner_edges].all(axis=1) & has_area
+
+
+def chord_sag(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Per triangle, how far the smooth surface a tessellation approximates may lie from it: ``k * r**2 / 2``
+    for the curvature ``k`` across its most bent edge (the angle between the two faces' normals over the
+    distance between their centroids) and the radius ``r`` of its smallest enclosing circle (a sphere of that
+    curvature through its corners is that far from its middle). Feature edges (``SHARP_DEGREES``: the chord is
+    the part's edge), boundaries and flat edges bend nothing. A coarse tessellation's chords are this far inside
+    a curved surface, so a fit may leave a surface within it unpulled; a fine one's sag is negligible."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    cos, count, _, corner_edges, has_area = _edge_angles(v, t)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    centroid = (a + b + c) / 3.0
+    angle = np.arccos(np.clip(cos, -1.0, 1.0))
+    smooth = (count == 2) & (angle < np.radians(SHARP_DEGREES))
+    gap = np.zeros(len(count))  # centroid distance across each two-face edge
+    flat_key = corner_edges.ravel()
+    owner = np.repeat(np.arange(len(t)), 3)
+    order = np.argsort(flat_key, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(flat_key[order]) != 0])
+    pair = count[flat_key[order[starts]]] == 2
+    f0, f1 = owner[order[starts[pair]]], owner[order[starts[pair] + 1]]
+    gap[flat_key[order[starts[pair]]]] = np.linalg.norm(centroid[f0] - centroid[f1], axis=1)
+    curvature = np.where(smooth & (gap > 0), angle / np.where(gap > 0, gap, 1.0), 0.0)
+    sides = np.sort(np.stack([np.linalg.norm(b - c, axis=1), np.linalg.norm(c - a, axis=1),
+                              np.linalg.norm(a - b, axis=1)], axis=1), axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    obtuse = sides[:, 2] ** 2 >= sides[:, 0] ** 2 + sides[:, 1] ** 2
+    circum = np.divide(sides.prod(axis=1), 4.0 * area, out=np.zeros(len(t)), where=area > 0)
+    radius = np.where(obtuse | ~has_area, 0.5 * sides[:, 2], circum)
+    return curvature[corner_edges].max(axis=1) * radius ** 2 / 2.0
 
 
 def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
@@ -432,10 +474,15 @@ class NearTriangles:
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(distance, closest point)`` of every row of ``points`` ``(q, 3)`` (class docstring)."""
+        d, point, _ = self.closest_triangles(points)
+        return d, point
+
+    def closest_triangles(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(distance, closest point, triangle index)`` of every row of ``points`` ``(q, 3)``."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         _, idx = self._tree.query(p, k=self.k)
-        tri = self._owner[np.asarray(idx).reshape(len(p), self.k)]
-        d, point, _ = self._data.closest(np.repeat(p, self.k, axis=0), tri.ravel())
+        tri = self._owner[np.asarray(idx).reshape(len(p), self.k)].ravel()
+        d, point, _ = self._data.closest(np.repeat(p, self.k, axis=0), tri)
         best = np.argmin(d.reshape(len(p), self.k), axis=1)
         pick = np.arange(len(p)) * self.k + best
-        return d[pick], point[pick]
+        return d[pick], point[pick], tri[pick]

@@ -54,8 +54,8 @@ whole cage by edge loops that keep its limit surface, each fitted by the adaptiv
 (sparse, stiffness annealed, every face kept sound), until ``max_distance`` (else ``refine_until``) is met,
 the time (``refine_share`` of ``max_seconds``, else ``refine_seconds``) or ``refine_max_faces`` runs out,
 or no op gains. Every level joins the accuracy/complexity front (``metrics["front"]``, one record per
-level in ``metrics["refinement"]``), measured alike: a fine mesh target's triangles both ways (see
-``REFINE_EXACT_TRIANGLES``).
+level in ``metrics["refinement"]``), measured alike: a mesh target's triangles both ways, the surface -> target
+direction less each triangle's chord sag (see :meth:`SurfaceProblem._back`).
 
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
@@ -85,8 +85,8 @@ from ..ga.pareto import has_pymoo, non_dominated
 from ..geometry.limit_surface import Hits, LimitSurface, get_layout
 from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
-from ..geometry.surface_distance import (NearTriangles, area_samples, cloud_distance, facet_triangles,
-                                         mixed_mean_distance, sampling_radius)
+from ..geometry.surface_distance import (NearTriangles, area_samples, chord_sag, cloud_distance,
+                                         facet_triangles, mixed_mean_distance, sampling_radius)
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -430,14 +430,23 @@ class SurfaceProblem:
         point within that radius of its nearest point costs nothing and is not pulled (weight 0), one
         beyond pays the excess and is pulled by it, towards the point. A tessellation's chords are not its
         surface, so the fit must not be pulled onto them; the exact distance to the triangles is reported.
-        With ``exact_back`` (a fine mesh, whose chords are its surface) the closest points are on the
-        triangles near ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), pulled all the way; so
+        With ``exact_back`` (the refinement on a mesh target) the closest points are on the triangles near
+        ``BACK_SAMPLES`` area samples of it (:class:`NearTriangles`), less the triangle's chord sag
+        (:func:`chord_sag`: within it a curved tessellation's surface may lie, beyond it the excess is paid and
+        pulled; a fine mesh's sag is negligible, and a sampling radius of a coarse one's vertices, as a cloud,
+        left a 640-triangle target's surface 1e-2 of the diagonal off while the fit saw 2e-4); so
         are, with ``exact_facets``, the surface points whose nearest point lies on a planar face of the part
         (:func:`on_facets`), which is its surface (else a bulge over a flat CAD face within the sampling radius went unseen).
         """
         if self.exact_back:
-            d, near = self._near_triangles().closest(X)
-            return d, near, np.ones(len(X))
+            d, near, tri = self._near_triangles().closest_triangles(X)
+            sag = self._sag()[tri]
+            if not sag.any():
+                return d, near, np.ones(len(X))
+            # within the chord's sag of a curved tessellation: free; beyond it, pulled by the excess only
+            excess = np.maximum(d - sag, 0.0)
+            share = np.divide(excess, d, out=np.zeros_like(d), where=d > 0)
+            return excess, X + share[:, None] * (near - X), (excess > 0).astype(np.float64)
         d, idx = cloud_distance(X, self._cloud, self._cloud_radius, self._cloud_tree)
         near = self._cloud[idx]
         gap = np.linalg.norm(near - X, axis=1)
@@ -449,6 +458,13 @@ class SurfaceProblem:
             d[flat], goal[flat] = self._near_triangles().closest(X[flat])
             weight[flat] = 1.0
         return d, goal, weight
+
+    def _sag(self) -> np.ndarray:
+        """Per target triangle, :func:`~gsr_cad.geometry.surface_distance.chord_sag` (computed on first use)."""
+        sag = self.__dict__.get("_chord_sag")
+        if sag is None:
+            sag = self._chord_sag = chord_sag(self.target.points, self.target.faces)
+        return sag
 
     def _near_triangles(self) -> NearTriangles:
         """The mesh target's :class:`NearTriangles` (built on first use)."""
@@ -1302,14 +1318,18 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         if growth is not None:
             final, pareto = growth.genome, growth.front
     late = None if deadline is None or not final else deadline - tail(problem.control_mesh(final).n_vertices)
+    rewrite_at = time.perf_counter()
     if final and not hurry() and (late is None or time.perf_counter() < late):
         final = problem.pruned(problem.grouped(problem.merged(final), late))
     if len(final) > MAX_OPS:  # no result holds it: the closest front cage whose history fits
         fits = sorted((entry for entry in pareto if len(entry[2]) <= MAX_OPS), key=lambda entry: entry[1])
         final = fits[0][2] if fits else best
     refine_seconds = time.perf_counter() - refined_at
+    rewrite_seconds = time.perf_counter() - rewrite_at
     control = problem.control_mesh(final)
+    metrics_at = time.perf_counter()
     metrics = surface_metrics(control, tgt, config)
+    metrics_seconds = time.perf_counter() - metrics_at
     before = before_best if final != best and before_best is not None else metrics
     metrics.update({
         "fitness": problem.evaluate(final, 0).cost if growth is None else growth.cost,
@@ -1322,6 +1342,9 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "polish_seconds": polish_seconds,
         "simplify_seconds": simplify_seconds,
         "refine_seconds": refine_seconds,
+        "rewrite_seconds": rewrite_seconds,
+        "metrics_seconds": metrics_seconds,
+        "predicted_metrics_seconds": tail(control.n_vertices),
         "refinement": [] if growth is None else growth.levels,
         "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
@@ -1358,11 +1381,6 @@ REFINE_POINTS = 8000
 """Target points the refinement fits (at least; its cages reach hundreds of control vertices)."""
 
 
-REFINE_EXACT_TRIANGLES = 1000
-"""A mesh target with at least this many triangles is fitted by the refinement to its triangles both ways
-(a fine mesh's chords are its surface; the back direction to the triangles near ``BACK_SAMPLES`` area
-samples and every centroid, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); a coarser one, like the search, to its area samples, each standing
-for the surface within its sampling radius (a coarse tessellation's chords are not its surface)."""
 
 
 POST_SHARE = 0.25
@@ -1404,7 +1422,7 @@ def _tail(problem: SurfaceProblem, best: tuple, search: SurfaceTarget, target: S
 
 class Growth(NamedTuple):
     """What the refinement made of the searched winner: the genome, its distance (the refinement's measure,
-    :meth:`SurfaceProblem._pairs`, see ``REFINE_EXACT_TRIANGLES``), the front re-measured alike with every
+    :meth:`SurfaceProblem._pairs` with ``exact_back``), the front re-measured alike with every
     level on it, and one record per level for result.json."""
 
     genome: tuple
@@ -1433,7 +1451,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
-    exact = target.faces is not None and len(target.faces) >= REFINE_EXACT_TRIANGLES
+    exact = target.faces is not None
     grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), problem.template,
                             exact_back=exact, exact_facets=True)
     grower.max_faces = problem.max_faces = max(problem.max_faces, config.refine_max_faces)
