@@ -12,7 +12,7 @@ from gsr_cad.errors import OpError
 from gsr_cad.genome import replay
 from gsr_cad.geometry.isomorphism import connectivity_hash, isomorphisms
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
-from gsr_cad.ops.mesh import EdgeLoop, Extrude, TranslateVertex, moves_to, random_op
+from gsr_cad.ops.mesh import EdgeLoop, Extrude, TranslateVertex, moves_to, random_op, random_ops
 from gsr_cad.ops.rewrite import simplify_history, skeletons
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
 
@@ -153,16 +153,9 @@ def test_skeletons_respect_the_allowed_kinds():
 @settings(max_examples=15, deadline=None)
 @given(st.integers(0, 10_000))
 def test_a_rewrite_is_never_longer_and_builds_the_same_mesh(seed):
-    rng = np.random.default_rng(seed)
     cube = unit_cube()
-    genome, mesh = [], cube
-    while len(genome) < 5:
-        op = random_op(rng, mesh, mesh.diagonal, "VEILF")
-        try:
-            mesh = op.apply(mesh)
-        except OpError:
-            continue
-        genome.append(op)
+    genome, mesh = random_ops(np.random.default_rng(seed), cube, 5, "VEILF")
+    genome = list(genome)
     out = simplify_history(cube, genome, budget=3000)
     assert len(out) <= len(genome)
     built = replay(cube, out)

@@ -100,3 +100,33 @@ def test_refinement_stops_before_a_history_no_result_can_hold(monkeypatch):
     genome, levels = refine(problem, (), 5e-4, time.perf_counter() + 120, 400)
     assert len(genome) <= limit
     assert np.abs(problem.control_mesh(genome).vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_replay_cache_and_run_merge_agree_with_a_plain_replay(seed, monkeypatch):
+    """Random histories (structural ops between runs of moves): the prefix-numbered replay cache, with a tiny
+    capacity so that entries are evicted mid-walk, keeps exactly the ops a plain replay applies and reaches the
+    same cage; the run merge is never longer and replays to the same cage."""
+    import gsr_cad.reconstruct.surface as surface_module
+    from gsr_cad.errors import OpError
+    from gsr_cad.geometry.polymesh import unit_cube
+    from gsr_cad.ops.mesh import random_ops
+
+    monkeypatch.setattr(surface_module, "_STATE_CACHE", 7)
+    target = surface_target(limit_mesh(unit_cube(), 2))
+    problem = SurfaceProblem(target, SurfaceConfig(), box_template(target))
+    problem.max_faces = 10**6  # every op that applies is kept, as in the plain replay
+    genome, mesh = random_ops(np.random.default_rng(seed), problem.template, 40, "VVVVELI", problem.diag)
+    plain, state = [], problem.template
+    for op in genome + genome[:5]:  # the tail re-applies early ops, some of which no longer apply
+        try:
+            state = op.apply(state)
+            plain.append(op)
+        except OpError:
+            pass
+    for _ in range(2):  # a cold and a warm cache
+        kept, walked = problem.walk(genome + genome[:5])
+        assert list(kept) == plain and np.array_equal(walked.vertices, state.vertices)
+    merged = problem.merged(genome)
+    assert len(merged) <= len(genome)
+    np.testing.assert_allclose(problem.control_mesh(merged).vertices, mesh.vertices, atol=1e-12 * problem.diag)

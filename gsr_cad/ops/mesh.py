@@ -426,6 +426,27 @@ def _hole_faces(view, face: int) -> tuple[int, int]:
     return face, partner
 
 
+def random_ops(rng: np.random.Generator, mesh: PolyMesh, n: int, kinds: str = "VELBIFS",
+               scale: float | None = None, tries: int | None = None) -> tuple[tuple[MeshOp, ...], PolyMesh]:
+    """``n`` random ops (:func:`random_op`, ``scale`` the diagonal, else the current mesh's) that apply in turn
+    to ``mesh``, invalid draws skipped, and the mesh they build; OpError after ``tries`` draws (default
+    ``1000 * n``) without ``n`` valid ones."""
+    ops: list[MeshOp] = []
+    limit = 1000 * n if tries is None else tries
+    for _ in range(limit):
+        if len(ops) == n:
+            break
+        op = random_op(rng, mesh, mesh.diagonal if scale is None else scale, kinds)
+        try:
+            mesh = op.apply(mesh)
+        except OpError:
+            continue
+        ops.append(op)
+    if len(ops) < n:
+        raise OpError(f"only {len(ops)} of {n} random ops applied in {limit} draws")
+    return tuple(ops), mesh
+
+
 def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str = "VELBIFS",
               ranges: OpRanges = OpRanges(),
               crease_edges: Sequence[int] | Callable[[PolyMesh], Sequence[int]] | None = None,

@@ -1125,20 +1125,25 @@ def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRI
 
 
 def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, extra: np.ndarray | None = None,
-              density: int = 2, counts: np.ndarray | None = None) -> dict[str, float]:
+              density: int = 2, counts: np.ndarray | None = None,
+              timing: dict[str, float] | None = None) -> dict[str, float]:
     """Both directions between an exact limit surface and a target, over the target's diagonal:
     ``data_to_fit`` from the points ``data`` (every one, :func:`data_distances`, each counted ``counts``
     times if given; the max also over ``extra``, e.g. a mesh's vertices) to the surface, ``fit_to_data``
     from the surface's area samples (``density`` more per patch side than the polish uses) to the target,
-    area-weighted."""
+    area-weighted. ``timing`` (if given) gets the seconds of the surface's side (``"surface"``), the one that
+    grows with the cage."""
     diag = target.diagonal
     d_data = data_distances(surface, data)
     weight = np.full(len(d_data), 1.0 / len(d_data)) if counts is None else counts / counts.sum()
     top = float(d_data.max())
     if extra is not None and len(extra):
         top = max(top, float(data_distances(surface, extra).max()))
+    start = time.perf_counter()
     samples, area = surface.samples(density)
     d_fit, _ = target.closest(samples.point)
+    if timing is not None:
+        timing["surface"] = time.perf_counter() - start
     return {"data_to_fit_mean": float(weight @ d_data / diag), "data_to_fit_max": top / diag,
             "data_to_fit_rms": float(np.sqrt(weight @ d_data ** 2) / diag),
             "fit_to_data_mean": float(area @ d_fit / max(float(area.sum()), 1e-300) / diag),
@@ -1154,18 +1159,19 @@ def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, t
     return [entries[i] for i in keep]
 
 
-def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig) -> dict[str, Any]:
+def surface_metrics(control: PolyMesh, target: SurfaceTarget, config: SurfaceConfig,
+                    timing: dict[str, float] | None = None) -> dict[str, Any]:
     """Distances between the control mesh's exact limit surface and the whole target (both directions,
     :func:`two_sided`: from every point of a cloud, or from ``METRIC_POINTS`` area samples of a mesh and
     (for the max) every one of its vertices), and the paper's mixed mean distance of its level-``k`` limit
-    vertices; all over the target's bounding-box diagonal."""
+    vertices; all over the target's bounding-box diagonal. ``timing``: see :func:`two_sided`."""
     layout = get_layout(control, config.boundary, config.limit_depth)
     surface = LimitSurface(layout, control.vertices)
     cloud = target.faces is None
     # a mesh's area samples repeat its vertices: each distinct point once, counted as often as drawn
     data, counts = ((target.points, None) if cloud
                     else np.unique(fit_points(target, METRIC_POINTS), axis=0, return_counts=True))
-    d = two_sided(surface, target, data, None if cloud else target.points, counts=counts)
+    d = two_sided(surface, target, data, None if cloud else target.points, counts=counts, timing=timing)
     cc = get_catmull_clark(control, config.levels, config.boundary)
     diag = target.diagonal
     mixed = mixed_mean_distance(cc.limit_matrix @ control.vertices, target.points, diag, target.kdtree)
@@ -1389,23 +1395,28 @@ _MIN_SEARCH = 0.01  # the search gets at least this share of max_seconds, whatev
 _POST_RESERVE = 0.1  # share of max_seconds left after the search when there is no refinement (polish, metrics)
 TAIL_MARGIN = 1.2
 TAIL_GROWTH = 0.4
-"""The final metrics of a cage are predicted to take ``TAIL_MARGIN`` times the search winner's (per target point)
-times the growth in control vertices to this power, so the refinement leaves that much time before the deadline.
-On the 56k-triangle bunny: 8.7 s at 16 control vertices and 6.6 s at 296 (load 5-7), 11-15 s at 16 and 10-17 s
-at 84 (load 8-10); elsewhere, under load 8-10, 29 s at 386 and 129 s at 1538: most of it does not grow with the
-cage (the target's side) until the cage is large."""
+"""The final metrics of a cage are predicted from the search winner's (per target point): the surface's side
+(its area samples to the target, :func:`two_sided`) grows in proportion to the control vertices, the rest by
+their growth to the power ``TAIL_GROWTH``, all ``TAIL_MARGIN`` times; so the refinement leaves that much time
+before the deadline. The target's side hardly grows (56k-triangle bunny: 8.7 s at 16 control vertices, 6.6 s at
+296); the surface's does: an OpenSCAD part's metrics took 11 s at 1456 vertices where a growth of the whole by
+the power 0.4 predicted 5.4 s, and the run ended 5 s late."""
 
 
 class _Tail:
     """The seconds the work after the refinement needs for a cage of ``vertices`` control vertices (callable):
     the final metrics on all of ``target``'s points, predicted from those of the search winner (``metrics``,
-    measured on the search's points, ``seconds``, at ``vertices``)."""
+    measured on the search's points in ``seconds``, ``surface`` of them on the surface's side, at ``vertices``)."""
 
-    def __init__(self, metrics: dict[str, Any] | None, seconds: float, vertices: int, scale: float):
+    def __init__(self, metrics: dict[str, Any] | None, seconds: float, vertices: int, scale: float,
+                 surface: float = 0.0):
         self.metrics, self.seconds, self.vertices, self.scale = metrics, seconds, max(vertices, 1), scale
+        self.surface = min(max(surface, 0.0), seconds)
 
     def __call__(self, vertices: int) -> float:
-        return TAIL_MARGIN * self.seconds * self.scale * max(vertices / self.vertices, 1.0) ** TAIL_GROWTH
+        growth = max(vertices / self.vertices, 1.0)
+        rest = (self.seconds - self.surface) * self.scale
+        return TAIL_MARGIN * (rest * growth ** TAIL_GROWTH + self.surface * growth)
 
 
 def _tail(problem: SurfaceProblem, best: tuple, search: SurfaceTarget, target: SurfaceTarget,
@@ -1415,9 +1426,10 @@ def _tail(problem: SurfaceProblem, best: tuple, search: SurfaceTarget, target: S
         return _Tail(None, 0.0, 1, 1.0)
     start = time.perf_counter()
     mesh = problem.control_mesh(best)
-    metrics = surface_metrics(mesh, search, config)
+    timing: dict[str, float] = {}
+    metrics = surface_metrics(mesh, search, config, timing)
     scale = max(len(target.points) / max(len(search.points), 1), 1.0) if target.faces is None else 1.0
-    return _Tail(metrics, time.perf_counter() - start, mesh.n_vertices, scale)
+    return _Tail(metrics, time.perf_counter() - start, mesh.n_vertices, scale, timing.get("surface", 0.0))
 
 
 class Growth(NamedTuple):

@@ -26,11 +26,11 @@ import numpy as np
 
 from .. import genome as genome_mod
 from ..atomic import write_text
-from ..errors import InputError, OpError
+from ..errors import InputError
 from ..geometry.limit_surface import LimitSurface
 from ..geometry.polymesh import PolyMesh, unit_cube
 from ..geometry.subdivision import limit_mesh
-from ..ops.mesh import Extrude, Inset, TranslateFace, random_op
+from ..ops.mesh import Extrude, Inset, TranslateFace, random_ops
 from .meshio import save_mesh
 from .samples import SAMPLES, register
 
@@ -137,17 +137,9 @@ def random_ops_sample(seed: int, name: str | None = None, description: str | Non
     """A target built by 4 to 6 valid random ops (all seven kinds, default ranges) on the unit cube."""
     rng = np.random.default_rng(seed)
     n_ops = int(rng.integers(4, 7))
-    mesh = unit_cube()
-    ops: list = []
-    while len(ops) < n_ops:
-        op = random_op(rng, mesh, mesh.diagonal)
-        try:
-            mesh = op.apply(mesh)
-        except OpError:
-            continue
-        ops.append(op)
+    ops, _ = random_ops(rng, unit_cube(), n_ops)
     return _from_genome(name or f"random_ops_{seed}",
-                        description or f"{n_ops} random ops on the cube (seed {seed})", tuple(ops), seed)
+                        description or f"{n_ops} random ops on the cube (seed {seed})", ops, seed)
 
 
 def square_ring(outer: float = 0.5, inner: float = 0.22, half_height: float = 0.18) -> PolyMesh:
