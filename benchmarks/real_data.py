@@ -88,7 +88,7 @@ def targets(work: Path, only: list[str] | None = None) -> list[Path]:
 
 def _ops(letters: str) -> str:
     """The op letters run-length encoded (a long history comes encoded already: "L9 V296")."""
-    return (letters if " " in letters else run_length(letters)) or "-"
+    return run_length(letters) or "-"
 
 
 def parts(target) -> int:

@@ -98,3 +98,13 @@ def test_two_sided_keys_are_shown_when_present_and_the_old_ones_otherwise(tmp_pa
     (warning,) = warning_lines(result_with({"data_to_fit_max": 2e-3}, {"max_distance": 1e-3}))
     assert warning == "warning: tolerance missed: max distance 0.4 mm (0.2 %) > --max-distance 0.2 mm (0.1 %)"
     assert warning_lines(result_with({"max_distance": 1e-4}, {"max_distance": 1e-3})) == []
+
+
+def test_ops_are_counted_once_whether_stored_as_letters_or_counted():
+    """A long history's ``ops`` is stored counted (``V8 E L V24``); the summary must not count it again."""
+    from gsr_cad.reconstruct.summary import run_length
+
+    assert run_length("VVVVVVVVELVV") == "V8 E L V2"
+    assert run_length("V8 E L V24 L15") == "V8 E L V24 L15"
+    assert run_length(run_length("LLSVVV")) == run_length("LLSVVV") == "L2 S V3"
+    assert run_length("") == ""

@@ -261,6 +261,41 @@ def test_threshold_stall_and_time_limits():
     assert r.stop_reason == "max_seconds" and r.generations == 0
 
 
+def test_stall_gain_stops_a_creeping_search():
+    """Each generation's best is 0.5 % below the last: any gain resets the stall count, a 5 % gain rule ends
+    the run once a window of generations gained less than 5 % together."""
+
+    class Creep(Seq):
+        def __init__(self):
+            super().__init__()
+            self.generation = 0
+
+        def cost(self, genome):
+            super().cost(genome)
+            return 0.995 ** self.generation * (1.0 + 1e-3 * sum(genome) / (len(genome) * self.k))
+
+    def run(**kwargs):
+        problem = Creep()
+        reports: list[GenerationReport] = []
+
+        def on_generation(report):
+            reports.append(report)
+            problem.generation = report.generation + 1
+            ga.memo.clear()  # the landscape moved on: remembered costs are stale
+
+        ga = GeneticAlgorithm(problem, small(generations=60, stall_generations=4, **kwargs), seed=3)
+        return ga.run(on_generation), reports
+
+    plain, _ = run()
+    assert plain.stop_reason == "generations"
+    gained, reports = run(stall_gain=0.05)
+    assert gained.stop_reason == "stall"
+    best = [r.best_cost for r in reports]
+    # the last improvement that counted was more than 5 %, every later one less in total
+    assert best[-5] * 0.95 <= best[-1] < best[-5]
+    assert gained.generations < plain.generations
+
+
 # ---------------------------------------------------------------- reproducibility, interrupt, checkpoint
 class Slow(Seq):
     """Each cost takes 20 ms: a first population of 60 would take 1.2 s."""
@@ -452,6 +487,7 @@ def test_paper_presets():
     dict(elite_fraction=1.0), dict(elite_fraction=0.999), dict(threshold=-1.0), dict(threshold=math.nan),
     dict(min_initial_genes=0), dict(min_initial_genes=5, max_initial_genes=4), dict(scheme="genetic"),
     dict(population=10.5), dict(generations=True), dict(max_seconds=0), dict(stall_generations=0),
+    dict(stall_gain=1.0), dict(stall_gain=-0.1), dict(stall_gain=math.nan),
     dict(local_search_every=-1), dict(mutation_rate="0.05"),
     dict(scheme="plus", n_parents=1), dict(scheme="plus", n_parents=200), dict(scheme="plus", max_duplicates=0),
     dict(scheme="plus", max_children=0, n_perturb=0, n_newcomers=0), dict(scheme="plus", n_perturb=101),

@@ -12,10 +12,11 @@ from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import EdgeLoop
-from gsr_cad.reconstruct.config import SurfaceConfig
+from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.reconstruct.refine import candidates, limit_cage, refine, residual, split_all
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
+from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
 
 
@@ -105,6 +106,25 @@ def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_dist
     picked = reconstruct_surface(target, seed=1, max_seconds=120, max_distance=goal, **small)
     assert picked.metrics["tolerance_met"] is True
     assert picked.metrics["n_control_vertices"] <= m["refinement"][1]["vertices"]
+
+
+def test_the_search_hands_over_to_the_refinement_when_it_creeps():
+    """With the refinement on, a search gaining less than REFINE_STALL_GAIN over refine_stall generations ends
+    (and says so); without it, or with the user's own --stall-generations, that rule is off."""
+    target = surface_target(limit_mesh(_blob(4), 3), "blob")
+    small = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+                 final_polish_rounds=2, simplify_history=False, max_target_points=1500, threshold=0.0)
+    handed = reconstruct_surface(target, seed=1, generations=80, refine_stall=2, refine_seconds=3, **small)
+    m = handed.metrics
+    assert m["stop_reason"] == "refine_stall" and 2 <= m["generations"] < 80
+    history = [h["best_fitness"] for h in handed.history]
+    assert history[-1] >= history[-3] * (1 - REFINE_STALL_GAIN)  # the last two generations gained < 10 %
+    assert "the refinement took over" in stop_text(handed)
+    plain = reconstruct_surface(target, seed=1, generations=3, refine_stall=2, refine=False, **small)
+    assert plain.metrics["stop_reason"] == "generations"
+    own = reconstruct_surface(target, seed=1, generations=3, refine_stall=1, stall_generations=5,
+                              refine_seconds=1, **small)
+    assert own.metrics["stop_reason"] == "generations"
 
 
 def test_the_paper_preset_does_not_refine():

@@ -36,7 +36,9 @@ class GAConfig:
     instead (niches by the problem's optional ``niche`` hook, else one per genome), so that a structure
     that needs a few polishes to show its worth is not starved by the incumbent. ``survival`` (plus scheme):
     ``"cost"`` keeps the lowest costs, ``"nsga2"`` NSGA-II's survival on (cost, complexity): a spread of the
-    accuracy/complexity front rather than only the most accurate.
+    accuracy/complexity front rather than only the most accurate. ``stall_gain`` = g: a generation counts as
+    an improvement for ``stall_generations`` only when it lowers the best cost below (1 - g) times the best at
+    the last improvement, so that a search creeping by fractions of a percent is stalled too (0: any gain).
     """
 
     scheme: str = "steady_state"
@@ -57,6 +59,7 @@ class GAConfig:
     threshold: float = 0.0
     max_seconds: float | None = None
     stall_generations: int | None = None
+    stall_gain: float = 0.0
     local_search_every: int = 0
     local_search_count: int = 1
     survival: str = "cost"
@@ -113,7 +116,7 @@ class GAConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Integral):
                 raise ConfigError(f"{name} must be an integer, not {value!r}")
-        for name in ("elite_fraction", "threshold", *_RATE_FIELDS):
+        for name in ("elite_fraction", "threshold", "stall_gain", *_RATE_FIELDS):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
                 raise ConfigError(f"{name} must be a finite number, not {value!r}")
@@ -137,6 +140,8 @@ class GAConfig:
                                                    or not isinstance(self.stall_generations, numbers.Integral)
                                                    or self.stall_generations < 1):
             raise ConfigError(f"stall_generations must be a positive integer or None, not {self.stall_generations!r}")
+        if not 0.0 <= self.stall_gain < 1.0:
+            raise ConfigError(f"stall_gain must lie in [0, 1), not {self.stall_gain}")
         if self.scheme == "steady_state":
             if not 0.0 < self.elite_fraction < 1.0 or self.n_elite < 1:
                 raise ConfigError(f"elite_fraction {self.elite_fraction} keeps nobody of a population of "

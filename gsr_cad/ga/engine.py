@@ -407,11 +407,11 @@ class GeneticAlgorithm:
 
     def _finish_generation(self, on_generation: Callable[[GenerationReport], None] | None) -> None:
         best_genome, best_cost = self.best
-        if best_cost < self._last_best:
+        if best_cost < self._last_best * (1.0 - self.config.stall_gain):
             self._stalled = 0
+            self._last_best = best_cost  # the reference the next improvement is measured from
         elif self.generation > 0:
             self._stalled += 1
-        self._last_best = best_cost
         state = self._state()
         self._stop = termination.stop_reason(self.config, state)
         self._progress = 1.0 if self._stop else max(self._progress, termination.progress(self.config, state))

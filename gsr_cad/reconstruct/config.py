@@ -104,6 +104,11 @@ def _ranges(config: Any, limits: dict[str, tuple[float, float]]) -> None:
             raise ConfigError(f"{_flag(field)} must lie in [{low:g}, {high:g}], not {value!r}")
 
 
+REFINE_STALL_GAIN = 0.1
+"""With the refinement on, the search ends once ``refine_stall`` generations gained less than this share: on real
+targets it creeps by a few percent per ten generations there (minutes), where the refinement's splits gain
+several times more per second."""
+
 _RUN_LIMITS = {"population": (2, 10_000), "initial_population": (1, 100_000), "min_initial_ops": (1, 50),
                "max_initial_ops": (1, 50), "min_ops": (1, 50), "generations": (1, 1_000_000),
                "stall_generations": (0, 1_000_000), "max_seconds": (0, 2_592_000)}
@@ -120,7 +125,7 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
                   "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
                   "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
-                  "refine_seconds": (0, 2_592_000)}
+                  "refine_seconds": (0, 2_592_000), "refine_stall": (0, 1_000_000)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
 
 
@@ -398,6 +403,15 @@ class SurfaceConfig:
         "Stop once the best fitness (a distance over the diagonal, see --fitness) is at or below this; 0: only on"
         " a perfect fit.")
     stall_generations: int = _field(0, _GA_HELP["stall_generations"])
+    stall_gain: float = _field(
+        0.0,
+        "A generation counts as an improvement for --stall-generations only when it lowers the best fitness by "
+        "more than this fraction of it, in [0, 1); 0: any gain.")
+    refine_stall: int = _field(
+        10,
+        "With the refinement on and no --stall-generations: the search ends after this many generations that "
+        f"together lower its best distance by less than {REFINE_STALL_GAIN:.0%} (the refinement grows the cage "
+        "faster from there); 0: the search runs its --generations.")
     max_seconds: float = _field(0.0, _GA_HELP["max_seconds"])
     units: str = _field("model", UNITS_HELP, choices=tuple(UNITS))
 
@@ -421,7 +435,8 @@ class SurfaceConfig:
         _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
-                      "max_duplicates", "generations", "stall_generations", "refine_max_faces"), _whole(0),
+                      "max_duplicates", "generations", "stall_generations", "refine_stall", "refine_max_faces"),
+               _whole(0),
                "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",
                       "n_parents", "max_duplicates", "generations", "max_control_faces"), _whole(1), "be at least 1")
@@ -441,6 +456,7 @@ class SurfaceConfig:
             raise ConfigError("n-parents and n-perturb must not exceed the population")
         _check(self, ("mutation_rate", "delete_rate", "append_rate", "inward_rate"), _rate, "lie in [0, 1]")
         _check(self, ("polish_gain",), lambda v: _real(v) and 0.0 < v <= 1.0, "lie in (0, 1]")
+        _check(self, ("stall_gain",), lambda v: _real(v) and 0.0 <= v < 1.0, "lie in [0, 1)")
         _check(self, ("move_range", "extrude_range", "face_move_range", "perturb_rel", "polish_damping", "threshold",
                       "max_seconds", "history_tolerance", "refine_until", "refine_share", "refine_seconds"),
                _finite_non_negative, "be a finite number >= 0")

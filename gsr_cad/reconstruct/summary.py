@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .config import REFINE_STALL_GAIN
 from .result import Result
 from .units import format_length, model_metrics, unit_label
 
@@ -16,6 +17,8 @@ STOP_REASONS = {
     "generations": "generation limit reached",
     "max_seconds": "time limit reached",
     "stall": "no improvement for --stall-generations",
+    "refine_stall": f"the search gained < {REFINE_STALL_GAIN:.0%} in --refine-stall generations; the refinement "
+                    "took over",
     "interrupted": "interrupted (Ctrl-C)",
 }
 
@@ -165,10 +168,11 @@ def warning_lines(result: Result) -> list[str]:
     return out
 
 
-
-
 def run_length(letters: str) -> str:
-    """Op letters with repeats counted: ``LVVVV`` -> ``L V4``."""
+    """Op letters with repeats counted: ``LVVVV`` -> ``L V4``; a history stored counted already (a long one's
+    ``ops`` in result.json: ``L9 V296``) is returned as it is."""
+    if any(c.isdigit() or c.isspace() for c in letters):
+        return letters
     out, i = [], 0
     while i < len(letters):
         j = i

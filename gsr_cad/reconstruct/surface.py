@@ -90,7 +90,7 @@ from ..geometry.surface_distance import (NearTriangles, area_samples, chord_sag,
 from ..ops import mesh_kernel as MK
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
-from .config import SurfaceConfig
+from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
@@ -1039,6 +1039,7 @@ def _ga_config(config: SurfaceConfig) -> GAConfig:
         threshold=config.threshold,
         max_seconds=config.max_seconds or None,
         stall_generations=config.stall_generations or None,
+        stall_gain=config.stall_gain,
         local_search_every=config.polish_every,
         local_search_count=config.polish_niches,
         survival=config.survival,
@@ -1264,6 +1265,9 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     tag = fingerprint("surface", tgt.points, tgt.faces, tmpl.vertices, tmpl.corners, config.to_json(), preset, seed)
     refining = config.refine and config.fitness == "surface"
     ga_config = _ga_config(config)
+    if refining and config.refine_stall and not config.stall_generations:
+        ga_config = dataclasses.replace(ga_config, stall_generations=config.refine_stall,
+                                        stall_gain=max(config.stall_gain, REFINE_STALL_GAIN))
     deadline = started + config.max_seconds if config.max_seconds else None
     if deadline is not None:  # the search's share of the time left (the refinement gets the rest)
         share = (1.0 - config.refine_share) if refining else 1.0 - _POST_RESERVE
@@ -1356,7 +1360,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
         "evaluations": run.evaluations,
-        "stop_reason": run.stop_reason,
+        "stop_reason": ("refine_stall" if run.stop_reason == "stall" and ga_config.stall_generations
+                        != config.stall_generations else run.stop_reason),
         "n_ops": len(final),
         "ops": _letters(final),
         **genus_metrics(control, *target_genus(tgt)),
