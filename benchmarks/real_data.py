@@ -18,8 +18,8 @@ run time. ``--jobs 2`` runs two targets at a time (one core each) and prints the
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
 then the baseline's vertices and the same distances, and gsr's accuracy/complexity front (control
-vertices: mean of both directions, the refinement's measure; then ``/`` the baseline's mean of both
-directions, exact, at the vertex count QuadriFlow gives nearest it, in parentheses; ``--no-front-baselines``
+vertices: mean of both directions, exact, as result.json's front records it; then ``/`` the baseline's mean of
+both directions, exact, at the vertex count QuadriFlow gives nearest it, in parentheses; ``--no-front-baselines``
 skips those).
 
     python benchmarks/real_data.py --max-seconds 300      # -> benchmarks/results/real_data.md
@@ -102,9 +102,10 @@ def parts(target) -> int:
 
 
 def _front_point(target, point: dict, with_baseline: bool) -> str:
-    """One front point, ``V: distance``, and with ``with_baseline`` the baseline's mean of both directions at
-    the vertex count QuadriFlow gives nearest it (``/ -`` when none)."""
-    text = f"{point['vertices']}: {point['distance']:.1e}"
+    """One front point, ``V: distance`` (its exact mean of both directions when the run measured it, else the
+    distance it was ranked by), and with ``with_baseline`` the baseline's mean of both directions at the
+    vertex count QuadriFlow gives nearest it (``/ -`` when none)."""
+    text = f"{point['vertices']}: {point.get('symmetric_distance', point['distance']):.1e}"
     if not with_baseline:
         return text
     b = baseline(target, point["vertices"])

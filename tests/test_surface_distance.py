@@ -269,3 +269,20 @@ def test_chord_sag_is_zero_on_flat_faces_and_sharp_edges():
     normals = cylinder.face_normals
     caps = np.abs(normals[:, 2]) > 0.99
     assert not sag[caps].any() and (sag[~caps] > 0).all()
+
+
+@pytest.mark.parametrize("height", [2.0, 20.0])
+def test_chord_sag_of_a_cylinder_is_its_strips_width_not_their_length(height):
+    """A CAD export tessellates a cylinder into long strips: the surface lies within ``k w^2 / 8`` of them
+    (``w`` the strip's width), however long they are; their enclosing circle would charge their length."""
+    sections = 32
+    cylinder = trimesh.creation.cylinder(radius=1.0, height=height, sections=sections)
+    sag = chord_sag(cylinder.vertices, cylinder.faces)
+    side = np.abs(cylinder.face_normals[:, 2]) < 0.01
+    true = 1.0 - np.cos(np.pi / sections)  # the arc's distance from its chord
+    assert np.allclose(sag[side], true, rtol=0.05)
+    rng = np.random.default_rng(1)
+    phi, z = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(-0.45, 0.45, 4000) * height
+    p = np.stack([np.cos(phi), np.sin(phi), z], axis=1)
+    near = TriangleSet(cylinder.vertices, cylinder.faces).closest(p)
+    assert (near.distance <= 1.05 * sag[near.triangle]).all()

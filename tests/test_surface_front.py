@@ -36,3 +36,26 @@ def test_the_runs_front_is_non_dominated_and_max_distance_picks_the_simplest():
     assert picked.metrics["n_control_vertices"] == points[0]["vertices"]
     strict = reconstruct_surface(target, seed=2, max_distance=1e-12, max_seconds=20, **SMALL)
     assert strict.metrics["tolerance_met"] is False
+
+
+def test_front_cages_carry_exact_distances_both_ways():
+    """Every front point (no time limit) carries the reported measure, both directions' exact means, besides
+    the distance the run ranked it by; the result's own cage carries its final metrics."""
+    import trimesh
+
+    from gsr_cad.geometry.polymesh import PolyMesh
+
+    mesh = trimesh.creation.capsule(height=1.0, radius=0.5, count=[16, 16])
+    target = surface_target(PolyMesh.from_faces(mesh.vertices, mesh.faces.tolist()), "capsule")
+    result = reconstruct_surface(target, seed=3, refine_seconds=20, refine_until=1e-3, **SMALL)
+    m = result.metrics
+    points = m["front"]
+    assert len(points) >= 2
+    for p in points:
+        assert p["data_to_fit_mean"] >= 0 and p["fit_to_data_mean"] >= 0
+        assert p["symmetric_distance"] == 0.5 * (p["data_to_fit_mean"] + p["fit_to_data_mean"])
+    own = [p for p in points if p["vertices"] == m["n_control_vertices"]]
+    assert own and own[0]["fit_to_data_mean"] == m["fit_to_data_mean"]
+    assert own[0]["data_to_fit_mean"] == m["data_to_fit_mean"]
+    # the smallest cage is the farthest by the reported measure as well as by the ranked one
+    assert points[0]["symmetric_distance"] > own[0]["symmetric_distance"]

@@ -290,35 +290,44 @@ def facet_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def chord_sag(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Per triangle, how far the smooth surface a tessellation approximates may lie from it: ``k * r**2 / 2``
-    for the curvature ``k`` across its most bent edge (the angle between the two faces' normals over the
-    distance between their centroids) and the radius ``r`` of its smallest enclosing circle (a sphere of that
-    curvature through its corners is that far from its middle). Feature edges (``SHARP_DEGREES``: the chord is
-    the part's edge), boundaries and flat edges bend nothing. A coarse tessellation's chords are this far inside
-    a curved surface, so a fit may leave a surface within it unpulled; a fine one's sag is negligible."""
+    """Per triangle, how far the smooth surface a tessellation approximates may lie from it.
+
+    Each smooth edge gives the normal curvature across it: the angle between its two faces' normals over the
+    distance between their centroids *across the edge* (a third of the sum of the faces' heights over it). A
+    triangle's curvature tensor is ``S = 2/3 * sum(k_e d_e d_e^T)`` over its edges (``d_e``: in its plane,
+    perpendicular to edge ``e``; the 2/3 makes three equal curvatures of a near-equilateral triangle ``k I``),
+    and its sag is half the squared radius of the smallest circle enclosing the triangle mapped by ``S^(1/2)``:
+    ``k r^2 / 2`` on a sphere, ``k w^2 / 8`` across a cylinder's strip of width ``w`` however long it is (an
+    enclosing circle of the strip itself would charge its length). Feature edges (``SHARP_DEGREES``: the chord
+    is the part's edge), boundaries and flat edges bend nothing. A coarse tessellation's chords are this far
+    inside a curved surface, so a fit may leave a surface within it unpulled; a fine one's sag is negligible."""
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     cos, count, _, corner_edges, has_area = _edge_angles(v, t)
-    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    centroid = (a + b + c) / 3.0
+    corners = v[t]  # (m, 3, 3)
+    along = np.roll(corners, -1, axis=1) - corners  # edge j runs from corner j to corner j + 1
+    length = np.linalg.norm(along, axis=2)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    double_area = np.linalg.norm(normal, axis=1)
+    normal = normal / np.where(double_area > 0, double_area, 1.0)[:, None]
+    height = np.divide(double_area[:, None], length, out=np.zeros_like(length), where=length > 0)
+    gap = np.zeros(len(count))  # the two faces' centroid distance across each edge: a third of their heights
+    np.add.at(gap, corner_edges.ravel(), height.ravel() / 3.0)
     angle = np.arccos(np.clip(cos, -1.0, 1.0))
-    smooth = (count == 2) & (angle < np.radians(SHARP_DEGREES))
-    gap = np.zeros(len(count))  # centroid distance across each two-face edge
-    flat_key = corner_edges.ravel()
-    owner = np.repeat(np.arange(len(t)), 3)
-    order = np.argsort(flat_key, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(flat_key[order]) != 0])
-    pair = count[flat_key[order[starts]]] == 2
-    f0, f1 = owner[order[starts[pair]]], owner[order[starts[pair] + 1]]
-    gap[flat_key[order[starts[pair]]]] = np.linalg.norm(centroid[f0] - centroid[f1], axis=1)
-    curvature = np.where(smooth & (gap > 0), angle / np.where(gap > 0, gap, 1.0), 0.0)
-    sides = np.sort(np.stack([np.linalg.norm(b - c, axis=1), np.linalg.norm(c - a, axis=1),
-                              np.linalg.norm(a - b, axis=1)], axis=1), axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    obtuse = sides[:, 2] ** 2 >= sides[:, 0] ** 2 + sides[:, 1] ** 2
-    circum = np.divide(sides.prod(axis=1), 4.0 * area, out=np.zeros(len(t)), where=area > 0)
-    radius = np.where(obtuse | ~has_area, 0.5 * sides[:, 2], circum)
-    return curvature[corner_edges].max(axis=1) * radius ** 2 / 2.0
+    smooth = (count == 2) & (angle < np.radians(SHARP_DEGREES)) & (gap > 0)
+    curvature = np.where(smooth, angle / np.where(gap > 0, gap, 1.0), 0.0)[corner_edges]  # (m, 3)
+    across = np.cross(normal[:, None, :], along)
+    across /= np.where(length > 0, length, 1.0)[:, :, None]
+    tensor = (2.0 / 3.0) * np.einsum("mj,mja,mjb->mab", curvature, across, across)
+    value, vector = np.linalg.eigh(tensor)
+    root = np.einsum("mab,mb,mcb->mac", vector, np.sqrt(np.maximum(value, 0.0)), vector)
+    mapped = np.einsum("mab,mjb->mja", root, corners - corners[:, :1])
+    sides = np.sort(np.linalg.norm(np.roll(mapped, -1, axis=1) - mapped, axis=2), axis=1)
+    mapped_area = 0.5 * np.linalg.norm(np.cross(mapped[:, 1], mapped[:, 2]), axis=1)
+    obtuse = sides[:, 2] ** 2 >= (sides[:, 0] ** 2 + sides[:, 1] ** 2) * (1.0 - 1e-9)
+    circum = np.divide(sides.prod(axis=1), 4.0 * mapped_area, out=np.zeros(len(t)), where=mapped_area > 0)
+    radius = np.where(obtuse | (mapped_area <= 0), 0.5 * sides[:, 2], circum)
+    return np.where(has_area, radius ** 2 / 2.0, 0.0)
 
 
 def area_samples(vertices: np.ndarray, triangles: np.ndarray, n: int, seed: int = 0) -> np.ndarray:

@@ -103,6 +103,8 @@ REWRITE_TOLERANCES = (1e-9, 1e-6, 1e-3)
 """How far (over the diagonal) the history rewrite may move control vertices, tried in turn; the
 rewrite must also keep the distance to the target within ``history_tolerance`` of the winner's."""
 DEFAULT_FIT_POINTS = 1500  # target points a fit scores when max_target_points is 0
+METRIC_DENSITY = 2
+"""Area samples per patch side that the final metrics' surface side adds to the polish's (:func:`two_sided`)."""
 METRIC_POINTS = 20000  # area samples of a mesh target the reported distances use (a cloud: all its points)
 METRIC_CHUNK = 50_000  # points whose foot points the reported distances find at once (bounded memory)
 BACK_SAMPLES = 20_000
@@ -1126,7 +1128,7 @@ def data_distances(surface: LimitSurface, points: np.ndarray, seeds: int = METRI
 
 
 def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, extra: np.ndarray | None = None,
-              density: int = 2, counts: np.ndarray | None = None,
+              density: int = METRIC_DENSITY, counts: np.ndarray | None = None,
               timing: dict[str, float] | None = None) -> dict[str, float]:
     """Both directions between an exact limit surface and a target, over the target's diagonal:
     ``data_to_fit`` from the points ``data`` (every one, :func:`data_distances`, each counted ``counts``
@@ -1296,7 +1298,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
 
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
-    tail = _tail(problem, best, search, tgt, config)  # also measures the search winner's metrics
+    tail = _tail(problem, best, search, tgt, config, deadline is not None)  # and the winner's metrics
     before_best = tail.metrics
     polish_at = time.perf_counter()
     # the polish and the history rewrite of the winner: before the refinement at most POST_SHARE of the time
@@ -1340,6 +1342,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     metrics_at = time.perf_counter()
     metrics = surface_metrics(control, tgt, config)
     metrics_seconds = time.perf_counter() - metrics_at
+    exact = _front_distances(problem, pareto, final, metrics, tgt, config, deadline, tail)
     before = before_best if final != best and before_best is not None else metrics
     metrics.update({
         "fitness": problem.evaluate(final, 0).cost if growth is None else growth.cost,
@@ -1366,7 +1369,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "ops": _letters(final),
         **genus_metrics(control, *target_genus(tgt)),
         "template_placement": placement.to_json(),
-        "front": [{"vertices": n, "ops": _letters(g), "distance": c, "n_ops": len(g)} for n, c, g in pareto],
+        "front": [{"vertices": n, "ops": _letters(g), "distance": c, "n_ops": len(g), **exact.get(n, {})}
+                  for n, c, g in pareto],
         "front_sort": "pymoo non-dominated sorting" if has_pymoo() else "non-dominated sorting (numpy)",
     })
     if config.max_distance is not None:
@@ -1388,53 +1392,134 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
                          target=tgt, template=tmpl, snapshots=snapshots)
 
 
+FRONT_METRIC_POINTS = 5000
+"""Area samples of a mesh target each front cage's exact distances use (the result's own use METRIC_POINTS)."""
+
+
+def _front_distances(problem: SurfaceProblem, pareto: list[tuple[int, float, tuple]], final: tuple,
+                     metrics: dict[str, Any], target: SurfaceTarget, config: SurfaceConfig,
+                     deadline: float | None, tail: Callable[[int], float]) -> dict[int, dict[str, float]]:
+    """Both directions' exact means for the front's cages, by control vertices: the front's ``distance`` is
+    the measure the search or the refinement ranked by (a sample, the surface side less a mesh's chord sag),
+    so a user comparing cages (or a baseline) at equal complexity gets the reported measure too. The result's
+    own cage takes its final metrics; the others, smallest first, :data:`FRONT_METRIC_POINTS` samples and no
+    extra surface density, while the time left (``deadline``) holds about half a final metrics (``tail``)."""
+    keys = ("data_to_fit_mean", "fit_to_data_mean")
+    out: dict[int, dict[str, float]] = {}
+    cloud = target.faces is None
+    data, counts = ((target.points, None) if cloud
+                    else np.unique(fit_points(target, FRONT_METRIC_POINTS), axis=0, return_counts=True))
+    for n, _, genome in sorted(pareto, key=lambda entry: entry[0]):
+        if genome == final or n == metrics["n_control_vertices"]:  # (its history rewritten: the same cage)
+            out[n] = {k: metrics[k] for k in keys}
+            continue
+        if deadline is not None and time.perf_counter() + 0.5 * tail(n) > deadline:
+            break
+        with contextlib.suppress(GsrError):
+            control = problem.control_mesh(genome)
+            surface = LimitSurface(get_layout(control, config.boundary, config.limit_depth), control.vertices)
+            d = two_sided(surface, target, data, counts=counts, density=0)
+            out[n] = {k: d[k] for k in keys}
+    for entry in out.values():
+        entry["symmetric_distance"] = 0.5 * (entry["data_to_fit_mean"] + entry["fit_to_data_mean"])
+    return out
+
+
 REFINE_POINTS = 8000
 """Target points the refinement fits (at least; its cages reach hundreds of control vertices)."""
-
-
 
 
 POST_SHARE = 0.25
 """Most share of the time left after the search that the winner's final polish and history rewrite may take."""
 _MIN_SEARCH = 0.01  # the search gets at least this share of max_seconds, whatever the preparation took
 _POST_RESERVE = 0.1  # share of max_seconds left after the search when there is no refinement (polish, metrics)
-TAIL_MARGIN = 1.2
-TAIL_GROWTH = 0.4
-"""The final metrics of a cage are predicted from the search winner's (per target point): the surface's side
-(its area samples to the target, :func:`two_sided`) grows in proportion to the control vertices, the rest by
-their growth to the power ``TAIL_GROWTH``, all ``TAIL_MARGIN`` times; so the refinement leaves that much time
-before the deadline. The target's side hardly grows (56k-triangle bunny: 8.7 s at 16 control vertices, 6.6 s at
-296); the surface's does: an OpenSCAD part's metrics took 11 s at 1456 vertices where a growth of the whole by
-the power 0.4 predicted 5.4 s, and the run ended 5 s late."""
+TAIL_MARGIN = 1.3
+TAIL_CALIBRATION_VERTICES = 90
+TAIL_OBSERVED = 3000
+TAIL_OBSERVE_GROWTH = 1.5
+"""The final metrics of a cage are predicted from two warm measurements on the search's points: the search
+winner's and its Catmull-Clark split cage's (split until it has ``TAIL_CALIBRATION_VERTICES``), each side of
+:func:`two_sided` (the surface's area samples to the target, and the rest) a line through the two, all
+``TAIL_MARGIN`` times; the refinement leaves that much time before the deadline. A single cold measurement
+scaled up misjudged both ways: the surface's side grows with the cage (an OpenSCAD part: 11 s at 1456
+vertices where growth by the power 0.4 gave 5.4 s), but at a small cage it is mostly the one-off cost of the
+target's closest-triangle index (bunny: 72 s predicted for 930 vertices, 5 s taken, 70 s of refinement
+lost), and a query costs more the farther the surface is (a split of the 8-vertex winner: 104 s at 1538
+vertices; the 930-vertex refined cage: 5 s). So each refinement level's surface side is measured too
+(:meth:`_Tail.observe`) and predicts that side from there."""
 
 
 class _Tail:
     """The seconds the work after the refinement needs for a cage of ``vertices`` control vertices (callable):
-    the final metrics on all of ``target``'s points, predicted from those of the search winner (``metrics``,
-    measured on the search's points in ``seconds``, ``surface`` of them on the surface's side, at ``vertices``)."""
+    the final metrics on all of ``target``'s points, from ``timings``: ``(control vertices, seconds, seconds of
+    the surface's side)`` measured on the search's points (two sizes: a line each; one: grown in proportion),
+    the rest times ``scale`` (a cloud's points over the search's). ``metrics``: the search winner's."""
 
-    def __init__(self, metrics: dict[str, Any] | None, seconds: float, vertices: int, scale: float,
-                 surface: float = 0.0):
-        self.metrics, self.seconds, self.vertices, self.scale = metrics, seconds, max(vertices, 1), scale
-        self.surface = min(max(surface, 0.0), seconds)
+    def __init__(self, metrics: dict[str, Any] | None, timings: list[tuple[int, float, float]], scale: float,
+                 target: SurfaceTarget | None = None, config: SurfaceConfig | None = None):
+        self.metrics, self.scale, self.target, self.config = metrics, scale, target, config
+        self.timings = sorted((max(int(n), 1), max(t, 0.0), min(max(s, 0.0), max(t, 0.0))) for n, t, s in timings)
+        self.vertices = self.timings[0][0]
+        self.observed: tuple[int, float] | None = None  # (control vertices, seconds per control vertex)
 
     def __call__(self, vertices: int) -> float:
-        growth = max(vertices / self.vertices, 1.0)
-        rest = (self.seconds - self.surface) * self.scale
-        return TAIL_MARGIN * (rest * growth ** TAIL_GROWTH + self.surface * growth)
+        (n0, t0, s0), (n1, t1, s1) = self.timings[0], self.timings[-1]
+        if n1 == n0 and self.observed is None:  # one size measured: both sides in proportion to the cage
+            grow = max(vertices / n0, 1.0)
+            return TAIL_MARGIN * grow * ((t0 - s0) * self.scale + s0)
+
+        def line(a: float, b: float) -> float:
+            slope = max((b - a) / (n1 - n0), 0.0) if n1 > n0 else 0.0
+            return max(a, b) + slope * max(vertices - n1, 0)
+
+        surface = line(s0, s1) if self.observed is None else self.observed[1] * max(vertices, self.observed[0])
+        return TAIL_MARGIN * (line(t0 - s0, t1 - s1) * self.scale + surface)
+
+    def observe(self, cage: PolyMesh) -> None:
+        """Time the surface's side on ``cage`` (a refinement level: as close to the target as the final cage,
+        where the search winner's split cages are not, and a closest-point query costs more the farther it
+        starts): all its area samples, and the target's closest points of at most ``TAIL_OBSERVED`` of them.
+        That side is then predicted in proportion to the cage from here. Skipped until the cage has grown by
+        ``TAIL_OBSERVE_GROWTH`` since the last observation."""
+        if self.target is None or self.config is None or (
+                self.observed is not None and cage.n_vertices < TAIL_OBSERVE_GROWTH * self.observed[0]):
+            return
+        start = time.perf_counter()
+        surface = LimitSurface(get_layout(cage, self.config.boundary, self.config.limit_depth), cage.vertices)
+        points = surface.samples(METRIC_DENSITY)[0].point
+        made = time.perf_counter() - start
+        pick = np.random.default_rng(0).choice(len(points), size=min(len(points), TAIL_OBSERVED), replace=False)
+        start = time.perf_counter()
+        self.target.closest(points[pick])
+        query = (time.perf_counter() - start) / max(len(pick), 1)
+        self.observed = (cage.n_vertices, (made + query * len(points)) / cage.n_vertices)
 
 
 def _tail(problem: SurfaceProblem, best: tuple, search: SurfaceTarget, target: SurfaceTarget,
-          config: SurfaceConfig) -> _Tail:
-    """The search winner's metrics on the search's points, timed, as a :class:`_Tail`."""
-    if not best:
-        return _Tail(None, 0.0, 1, 1.0)
-    start = time.perf_counter()
-    mesh = problem.control_mesh(best)
-    timing: dict[str, float] = {}
-    metrics = surface_metrics(mesh, search, config, timing)
+          config: SurfaceConfig, calibrate: bool = True) -> _Tail:
+    """The search winner's metrics on the search's points as a :class:`_Tail`; with ``calibrate`` also timed
+    warm (the first call builds the target's indexes) at the winner and at its split cage."""
     scale = max(len(target.points) / max(len(search.points), 1), 1.0) if target.faces is None else 1.0
-    return _Tail(metrics, time.perf_counter() - start, mesh.n_vertices, scale, timing.get("surface", 0.0))
+    if not best:
+        return _Tail(None, [(1, 0.0, 0.0)], scale)
+    mesh = problem.control_mesh(best)
+
+    def timed(cage: PolyMesh) -> tuple[dict[str, Any], tuple[int, float, float]]:
+        timing: dict[str, float] = {}
+        start = time.perf_counter()
+        metrics = surface_metrics(cage, search, config, timing)
+        return metrics, (cage.n_vertices, time.perf_counter() - start, timing.get("surface", 0.0))
+
+    metrics, first = timed(mesh)
+    if not calibrate:
+        return _Tail(metrics, [first], scale)
+    timings = [timed(mesh)[1]]
+    cage = mesh
+    while cage.n_vertices < TAIL_CALIBRATION_VERTICES:
+        cage = get_catmull_clark(cage, 1, config.boundary).refine(cage.vertices)
+    if cage is not mesh:
+        timings.append(timed(cage)[1])
+    return _Tail(metrics, timings, scale, target, config)
 
 
 class Growth(NamedTuple):
@@ -1485,6 +1570,11 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         if n not in found or cost < found[n][0]:
             found[n] = (cost, history)
 
+    def level(mesh: PolyMesh, cost: float, history: tuple) -> None:
+        record(mesh, cost, history)
+        if isinstance(tail, _Tail):
+            tail.observe(mesh)
+
     winner = grower.control_mesh(genome).n_vertices
     for n, _, g in searched:
         if (n >= winner or (should_stop is not None and should_stop())
@@ -1501,8 +1591,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     meets = [entry for entry in front(found) if entry[1] <= goal]
     if pick and meets:
         return Growth(meets[0][2], meets[0][1], front(found), [])
-    final, levels = refine(grower, genome, goal, deadline, refine_face_limit(target, config.refine_max_faces), record,
-                           should_stop, tail)
+    final, levels = refine(grower, genome, goal, deadline, refine_face_limit(target, config.refine_max_faces),
+                           level, should_stop, tail)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
