@@ -79,7 +79,12 @@ def test_refinement_grows_the_cage_until_it_fits_and_replays(seed):
         replayed = problem.control_mesh(history)
         assert replayed.n_vertices == n
         assert np.abs(replayed.vertices - level.control.vertices).max() <= 1e-9 * target.diagonal
-    assert seen[-1][2] == genome
+    assert seen[len(levels) - 1][2] == genome
+    # then earlier levels' cages fitted on (front points): each replays, and is closer than its level was
+    for n, cost, history in seen[len(levels):]:
+        assert problem.control_mesh(history).n_vertices == n
+        assert problem.fit(problem.control_mesh(history), 0)[1] == pytest.approx(cost, rel=1e-9)
+        assert cost < min(lv.cost for lv in levels if lv.control.n_vertices == n)
 
 
 def test_the_limit_cage_lies_on_the_limit_surface():

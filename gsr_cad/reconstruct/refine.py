@@ -51,6 +51,8 @@ TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
+FINISH_ROUNDS = 60  # most rounds the last cage's fit gets after the levels (:func:`_finish`)
+FRONT_TAIL = 1.5  # the front's cages are finished while this many times the final cage's tail is left
 REACH_REFITS = 2
 """Where some of a level's moves refuse (they would fold a face on the way), the cage the others reach is fitted
 again from there and moved to, up to this many times (example010's first split: 7 of 42 vertices refused and the
@@ -286,10 +288,11 @@ class _Fitter:
             ahead += self.timing.predict(extra, n)
         return time.perf_counter() + ahead <= end
 
-    def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS) -> tuple[np.ndarray, float]:
+    def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS,
+                 fairing: float | None = None) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
-                               deadline=self.end(mesh))
+                               deadline=self.end(mesh), fairing=fairing)
         done = getattr(self.problem, "fit_rounds", rounds)
         self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
         return out
@@ -333,6 +336,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     if full == genome:
         mesh, cost = fitted, problem.fit(fitted, 0)[1]
     levels = [Level((), mesh, cost, time.perf_counter() - started)]
+    stages = [(base, base_state, full, mesh, cost)]  # what each level's cage is built from (for _finish)
     if record is not None:
         record(mesh, cost, full)
     while (cost > goal and mesh.n_faces < max_faces and not out_of_time()
@@ -385,14 +389,62 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             chosen = _fallback(problem, _fit, out_of_time, mesh, cost, base, base_state, full, res, max_faces)
         if chosen is None:
             break
-        ops, base, base_state, step, reached, c = chosen
-        if len(step) > MAX_OPS:  # a history no result may hold (moves staged past merging): the last level stands
+        if len(chosen[3]) > MAX_OPS:  # a history no result may hold (moves staged past merging): the last level stands
             break
-        full, mesh, cost = step, reached, c
+        ops, base, base_state, full, mesh, cost = chosen
         levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
+        stages.append((base, base_state, full, mesh, cost))
         if record is not None:
             record(mesh, cost, full)
+    finished = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full)
+    if finished is not None:
+        base, base_state, full, mesh, cost = finished
+        levels.append(Level((), mesh, cost, time.perf_counter() - started))
+        if record is not None:
+            record(mesh, cost, full)
+    if record is not None:
+        # the earlier levels' cages, smallest first, converged too in the time left: each is a point of the
+        # front, and a user picking a simpler cage gets its structure's best fit, not a stage on the way;
+        # their fits keep the final cage's tail free
+        last = mesh.n_vertices
+        front_fit = _Fitter(problem, deadline, None if tail is None else lambda n: FRONT_TAIL * tail(max(n, last)))
+        front_fit.timing = _fit.timing
+        for stage in stages[:-1]:
+            if out_of_time():
+                break
+            done = _finish(problem, front_fit, out_of_time, stage[3], stage[4], *stage[:3])
+            if done is not None:
+                record(done[3], done[4], done[2])
     return full, levels
+
+
+def _finish(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,
+            full: tuple) -> tuple | None:
+    """The last cage fitted on to convergence (up to ``FINISH_ROUNDS`` more rounds while they gain, in the
+    time left), no new structure: ``(base, base_state, genome, cage, distance)``, or None when that gains
+    less than ``MIN_GAIN``. A level's fit stops after ``LEVEL_ROUNDS`` to leave time for the next; the
+    last one has none, and its cage is the result and a point of the front (bone's last cage, 426 control
+    vertices: 1.6e-3 of the diagonal after its level, 4.5e-4 after 60 more rounds). The rounds with the fairing
+    rows stop where those outweigh the residual; 30 rounds without them go on (642 vertices: 6.7e-4 -> 5.9e-4
+    both ways, where the faired fit could not gain a round)."""
+    if FINISH_ROUNDS <= 0 or out_of_time() or not _fit.fits_in_time(mesh, FINISH_ROUNDS):
+        return None
+    try:  # faired while that gains, then without the fairing rows, which stall a converged fit
+        v, c = _fit(mesh, FINISH_ROUNDS)
+        if not out_of_time():
+            v2, c2 = _fit(mesh.with_vertices(v), FINISH_ROUNDS // 2, fairing=0.0)
+            if c2 < c:
+                v, c = v2, c2
+    except GsrError:
+        return None
+    if not c < MIN_GAIN * cost:
+        return None
+    a = base_state if base_state.topology_key == mesh.topology_key else None
+    chosen = _fit.timed("commit", mesh, lambda: _commit(problem, base, base_state, full, (), a,
+                                                        mesh.with_vertices(v), c, cost, _fit.late(mesh)))
+    if chosen is None or len(chosen[3]) > MAX_OPS:
+        return None
+    return chosen[1:]
 
 
 def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,
@@ -400,24 +452,44 @@ def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
     """A level from the fitted cage of ``ops``: ``(ops, the new base, its state, the level's genome, the cage it
     replays to, its distance)``. The ops replay on the base's geometry (``a``, when they apply there) or
     after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
-    moves refuse, the cage the others reach stands if it still gains (below ``MIN_GAIN`` of ``cost``); else
-    None."""
+    moves refuse on both, the cage the others reach (the path with fewer refusals first) is fitted again
+    from there and moved to, up to ``REACH_REFITS`` times, and stands if it still gains (below ``MIN_GAIN``
+    of ``cost``); else None. (Only the second path used to be refitted: bone's first split, 418 control
+    vertices, reached 5.9e-3 of the diagonal from 1.1e-2 on the first path with 60 refusals, found no
+    place to follow the previous moves, and was dropped.)"""
+    partial = []
     if a is not None:
         step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices, deadline)
         if not left:
             return ops, base + ops, a, step, fitted, c
+        partial.append((left, 0, base + ops, a, step, reached))
     prefix, state = _after(problem, full, ops)
-    if state is None:
-        return None
-    step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline)
-    for _ in range(REACH_REFITS + 1):
+    if state is not None:
+        step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline)
         if not left:
+            return ops, prefix + ops, state, step, fitted, c
+        partial.append((left, 1, prefix + ops, state, step, reached))
+    for _, _, new_base, new_state, step, reached in sorted(partial, key=lambda t: t[:2]):
+        level = _refit_reached(problem, step, reached, cost, deadline)
+        if level is not None:
+            return (ops, new_base, new_state, *level)
+        if deadline is not None and time.perf_counter() >= deadline:
             break
+    return None
+
+
+def _refit_reached(problem, step: tuple, reached: PolyMesh, cost: float, deadline: float | None
+                   ) -> tuple[tuple, PolyMesh, float] | None:
+    """``(genome, cage, distance)`` from a level's partly replayed moves (``step`` builds the sound cage
+    ``reached``): that cage fitted again and moved to while moves refuse (at most ``REACH_REFITS`` times),
+    if it gains (below ``MIN_GAIN`` of ``cost``); else None."""
+    left = 1
+    for _ in range(REACH_REFITS + 1):
         try:
             c = problem.fit(reached, 0)[1]
         except GsrError:
             return None
-        if c < MIN_GAIN * cost or (deadline is not None and time.perf_counter() >= deadline):
+        if not left or c < MIN_GAIN * cost or (deadline is not None and time.perf_counter() >= deadline):
             break
         # the cage the moves did reach is sound: fitted again from there, its positions mostly replay
         try:
@@ -426,11 +498,12 @@ def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
         except GsrError:
             return None
         step, reached, left = _reach_partial(problem, step, reached, v, deadline)
-        if not left:
+    else:
+        try:
             c = problem.fit(reached, 0)[1]
-    if not c < MIN_GAIN * cost:
-        return None
-    return ops, prefix + ops, state, step, reached, c
+        except GsrError:
+            return None
+    return (step, reached, c) if c < MIN_GAIN * cost else None
 
 
 def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,
