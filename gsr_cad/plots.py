@@ -589,7 +589,9 @@ def surface_figure(result: Result, target=None, snapshots: Sequence[Any] | None 
     states = hist.replayed(hist.surface_template(result), genome)
     steps = hist.step_indices(len(genome), STRIP_STEPS) if states is not None else []
     strip = [(k, states[k], *_limit_distances(states[k], target, levels, boundary)) for k in steps]
-    top = float(dist.max()) if target is not None else 0.0  # the result's range; earlier steps may exceed it
+    # the result's range (earlier steps may exceed it): its reported max distance to the target, which the exact
+    # limit surface reaches between the level-k vertices drawn here
+    top = max(float(dist.max()), float(m.get("max_distance_to_target", 0.0)) * diag) if target is not None else 0.0
     norm = Normalize(0.0, top if top > 0 else 1e-12 * diag, clip=True)
     cmap = colormaps["turbo_r"]
     shown = [limit.vertices, result.control_mesh.vertices] + ([np.asarray(target.points)] if target is not None

@@ -1267,8 +1267,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     "cube" (fitted to the target's box), a quad mesh file or a PolyMesh. ``overrides`` are
     :class:`SurfaceConfig` fields. ``evaluator`` is any ``(fn, items) -> list`` (e.g. a
     :class:`~gsr_cad.ga.ProcessPoolEvaluator`). Ctrl-C during the search keeps the best genome found so
-    far (``result.interrupted``), as does ``should_stop()`` turning true (the final polish and the history
-    rewrite are then skipped or cut short). With ``checkpoint`` the search state is saved there every
+    far (``result.interrupted``), as does ``should_stop()`` turning true; the final polish, the refinement and
+    the history rewrite are then skipped or cut short. With ``checkpoint`` the search state is saved there every
     generation and, if that file exists, the run continues from it (same seed, same result as an
     uninterrupted run). Bad input raises InputError / TopologyError / ConfigError.
     """
@@ -1309,8 +1309,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
             best = meets[0][2]  # the simplest cage that meets the tolerance
     searched = time.perf_counter()
 
-    def hurry() -> bool:
-        return should_stop is not None and bool(should_stop())
+    def hurry() -> bool:  # a Ctrl-C that ended the search ends the run too (no polish, refinement or rewrite)
+        return run.interrupted or (should_stop is not None and bool(should_stop()))
 
     snapshots = [Snapshot(g, c, genome, problem.evaluate(genome, 0 if hurry() else config.polish_rounds).control)
                  for g, c, genome in _pick_snapshots(changes, n_snapshots) if genome]
