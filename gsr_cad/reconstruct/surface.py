@@ -94,8 +94,9 @@ from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
-from .refine import _inradius, refine
+from .refine import _inradius, _reach, refine, snapped_within
 from .result import MAX_OPS, Result
+from .snap import snap_far_vertices
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
 _STATE_CACHE = 4096  # replayed genome prefixes kept (small meshes: a few kB each)
@@ -601,6 +602,11 @@ class SurfaceProblem:
             if not moved:
                 break
         return best_v, best_cost
+
+    def snap(self, mesh: PolyMesh, threshold: float) -> tuple[PolyMesh, int]:
+        """``mesh`` with its control vertices whose limit points lie over ``threshold`` from the target moved
+        onto it as far as the mesh ops allow, and how many moved (:func:`~.snap.snap_far_vertices`)."""
+        return snap_far_vertices(mesh, self.target.closest, threshold, _unsound_faces)
 
     def _moves(self, state: PolyMesh, goal: np.ndarray, deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
         """``translate_vertex`` ops taking ``state``'s vertices to ``goal``: ``(ops, resulting mesh, how many
@@ -1602,12 +1608,16 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
             break
         with contextlib.suppress(GsrError):
             mesh = grower.control_mesh(g)  # fitted as far as a refinement level's cage (:data:`FRONT_ROUNDS`)
-            v, cost = grower.fit(mesh, max(config.polish_rounds, FRONT_ROUNDS))
-            moves, _, refused = grower._moves(mesh, v)
-            if refused:
-                record(mesh, grower.fit(mesh, 0)[1], g)
+            fitted = grower.fit(mesh, max(config.polish_rounds, FRONT_ROUNDS))
+            snap = snapped_within(grower, mesh.with_vertices(fitted[0]), fitted[1], deadline, should_stop)
+            # the snapped fit (fins and webs folded onto the target) if its moves replay, else the plain one
+            for v, cost, via in (snap, (*fitted, ())) if snap[1] < fitted[1] else ((*fitted, ()),):
+                moves = _reach(grower, (), mesh, v, via)
+                if moves is not None:
+                    record(mesh, cost, g + moves)
+                    break
             else:
-                record(mesh, cost, g + moves)
+                record(mesh, grower.fit(mesh, 0)[1], g)
     meets = [entry for entry in front(found) if entry[1] <= goal]
     if pick and meets:
         return Growth(meets[0][2], meets[0][1], front(found), [])
