@@ -467,7 +467,7 @@ def snapped(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, passes: int
     control vertices whose limit points lie over ``SNAP_FACTOR`` times ``cost`` from the target) each followed
     by ``rounds`` rounds of the fit without fairing, while they gain: its vertices, cost and the positions on
     the way (``mesh``'s, then each pass's snapped and fitted ones before the last: the moves of a history
-    replay through them where the straight path to the end folds a face, :func:`_moved`)
+    replay through them where the straight path to the end folds a face, :meth:`SurfaceProblem._moves`)
     (:func:`~gsr_cad.reconstruct.snap.snap_far_vertices`). Fins and webs
     are local minima of the fit that this steps out of (bone, 162 control vertices: 2.0e-3 -> 9.3e-4 of the
     diagonal both ways in three passes)."""
@@ -502,10 +502,10 @@ def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
     after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
     moves refuse on both, the cage the others reach (the path with fewer refusals first) is fitted again
     from there and moved to, up to ``REACH_REFITS`` times, and stands if it still gains (below ``MIN_GAIN``
-    of ``cost``); else None. ``via``: positions the moves may pass through (:func:`_moved`). (Only the second
-    path used to be refitted: bone's first split, 418 control
-    vertices, reached 5.9e-3 of the diagonal from 1.1e-2 on the first path with 60 refusals, found no
-    place to follow the previous moves, and was dropped.)"""
+    of ``cost``); else None. ``via``: positions the moves may pass through (:meth:`SurfaceProblem._moves`).
+    (Only the second path used to be refitted: bone's first split, 418 control vertices, reached 5.9e-3 of
+    the diagonal from 1.1e-2 on the first path with 60 refusals, found no place to follow the previous
+    moves, and was dropped.)"""
     partial = []
     if a is not None:
         step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices, deadline, via)
@@ -632,42 +632,18 @@ def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
     return prefix, _apply(ops, problem.control_mesh(prefix))
 
 
-VIA_MAX_OPS = MAX_OPS // 2  # most moves a path through waypoints may take (the rest of a history needs room)
-
-
-def _moved(problem, state: PolyMesh, vertices: np.ndarray, via: tuple[np.ndarray, ...] = (),
-           deadline: float | None = None) -> tuple[tuple, PolyMesh, int]:
-    """Moves from ``state`` towards ``vertices`` that replay, the cage they reach and how many vertices did
-    not get there: straight there, or, when some move refuses, through the positions ``via`` (a snapped fit's
-    way, :func:`snapped`) if that leaves fewer behind. A fin folded onto the target turns its faces over;
-    the straight path between the two cages folds them on the way, while the fit's own way is sound at every
-    step (bone, 378 control vertices: 18 moves refused straight, none through the way, 4.4e-4 of the
-    diagonal reached instead of 8.0e-4)."""
-    moves, reached, refused = problem._moves(state, vertices, deadline)
-    if not refused or not via:
-        return moves, reached, refused
-    steps: tuple = ()
-    current, left = state, 0
-    for goal in (*via, vertices):
-        more, current, left = problem._moves(current, goal, deadline)
-        steps += more
-        if len(steps) > VIA_MAX_OPS:
-            return moves, reached, refused
-    return (steps, current, left) if left < refused else (moves, reached, refused)
-
-
 def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray,
                    deadline: float | None = None, via: tuple[np.ndarray, ...] = ()) -> tuple[tuple, PolyMesh, int]:
-    """``base`` (which builds ``state``) followed by the moves towards ``vertices`` that replay (:func:`_moved`),
-    the cage they reach and how many vertices did not get there (no staged attempt of the moves starting
-    after ``deadline``)."""
-    moves, reached, refused = _moved(problem, state, vertices, via, deadline)
+    """``base`` (which builds ``state``) followed by the moves towards ``vertices`` that replay
+    (:meth:`SurfaceProblem._moves`), the cage they reach and how many vertices did not get there (no staged
+    attempt of the moves starting after ``deadline``)."""
+    moves, reached, refused = problem._moves(state, vertices, deadline, via)
     return base + moves, reached, refused
 
 
 def _reach(problem, base: tuple, state: PolyMesh, vertices: np.ndarray,
            via: tuple[np.ndarray, ...] = ()) -> tuple | None:
-    """``base`` (which builds ``state``) followed by the moves to ``vertices`` (:func:`_moved`), or None
+    """``base`` (which builds ``state``) followed by the moves to ``vertices`` (:meth:`SurfaceProblem._moves`), or None
     when some move cannot replay."""
-    moves, _, refused = _moved(problem, state, vertices, via)
+    moves, _, refused = problem._moves(state, vertices, None, via)
     return None if refused else base + moves
