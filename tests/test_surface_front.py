@@ -59,3 +59,40 @@ def test_front_cages_carry_exact_distances_both_ways():
     assert own[0]["data_to_fit_mean"] == m["data_to_fit_mean"]
     # the smallest cage is the farthest by the reported measure as well as by the ranked one
     assert points[0]["symmetric_distance"] > own[0]["symmetric_distance"]
+
+
+def test_the_template_fitted_joins_the_front_beside_the_searchs_own_cage():
+    """The search's simplest cage may be a worse minimum of the template's own structure (example007: a pyramid
+    of moves at 5.9e-2 of the diagonal both ways where the fitted box gave 3.7e-2); the front keeps the better."""
+    import trimesh
+
+    from gsr_cad.geometry.polymesh import PolyMesh
+    from gsr_cad.ops.mesh import EdgeLoop, TranslateVertex
+    from gsr_cad.reconstruct.config import SurfaceConfig
+    from gsr_cad.reconstruct.inputs import SurfaceTarget
+    from gsr_cad.reconstruct.surface import SurfaceProblem, _refined, surface_metrics
+
+    blob = trimesh.creation.icosphere(subdivisions=3)
+    blob.apply_scale([1.5, 1.0, 0.7])
+    target = SurfaceTarget(np.asarray(blob.vertices), np.asarray(blob.faces), "ellipsoid")
+    v = np.array([[x, y, z] for x in (-1.5, 1.5) for y in (-1.0, 1.0) for z in (-0.7, 0.7)])
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    cube = PolyMesh.from_faces(v, faces)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=600), cube)
+    apex = (0.0, 0.0, 0.7)
+    pyramid = tuple(TranslateVertex(i, tuple(float(x) for x in 0.9 * (np.array(apex) - v[i]))) for i in (4, 5, 6, 7))
+    assert problem.control_mesh(pyramid).n_vertices == 8
+    searched = [(8, problem.evaluate(pyramid, 0).cost, pyramid)]
+    winner = (EdgeLoop(0),)
+    growth = _refined(problem, winner, 1.0, None, searched, None, pick=True)
+    eight = [entry for entry in growth.front if entry[0] == 8]
+    assert eight
+    cost, genome = eight[0][1], eight[0][2]
+    assert all(isinstance(op, TranslateVertex) for op in genome)
+    start = problem.control_mesh(pyramid)
+    refit = start.with_vertices(SurfaceProblem(target, SurfaceConfig(max_target_points=600), cube,
+                                               exact_back=True).fit(start, 30)[0])
+    config = SurfaceConfig()
+    kept = surface_metrics(problem.control_mesh(genome), target, config)["symmetric_distance"]
+    assert kept < 0.9 * surface_metrics(refit, target, config)["symmetric_distance"]
+    assert math.isfinite(cost)

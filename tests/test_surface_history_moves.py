@@ -130,3 +130,28 @@ def test_replay_cache_and_run_merge_agree_with_a_plain_replay(seed, monkeypatch)
     merged = problem.merged(genome)
     assert len(merged) <= len(genome)
     np.testing.assert_allclose(problem.control_mesh(merged).vertices, mesh.vertices, atol=1e-12 * problem.diag)
+
+
+def _turned(v: np.ndarray, degrees: float) -> np.ndarray:
+    a = np.radians(degrees)
+    rot = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    return v @ rot.T
+
+
+def test_moves_that_fold_on_the_straight_path_replay_through_the_way_given():
+    """A half turn: every straight path between the two cages passes through the axis (every face collapses
+    half way), so no staging replays it; through the positions of a 60 and a 120 degree turn (a sound way, as a
+    snapped fit's), each leg does, and the moves reach the goal exactly."""
+    mesh = _fine_cube()
+    problem = SurfaceProblem(surface_target(limit_mesh(mesh, 1), "cube"), SurfaceConfig(), mesh)
+    goal = _turned(mesh.vertices, 180.0)
+    straight = problem._moves(mesh, goal)
+    assert straight[2] > 0
+    via = (_turned(mesh.vertices, 60.0), _turned(mesh.vertices, 120.0))
+    moves, reached, refused = problem._moves(mesh, goal, via=via)
+    assert refused == 0 and all(isinstance(op, TranslateVertex) for op in moves)
+    replayed = problem.control_mesh(tuple(moves))
+    assert np.abs(replayed.vertices - goal).max() <= 1e-9 * problem.diag
+    assert np.array_equal(replayed.vertices, reached.vertices)
+    # a way that does not help is not taken: the straight attempt's moves stand
+    assert problem._moves(mesh, goal, via=(goal,))[0] == straight[0]
