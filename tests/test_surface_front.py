@@ -7,8 +7,9 @@ import math
 
 import numpy as np
 
+from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
-from gsr_cad.reconstruct.surface import front, reconstruct_surface
+from gsr_cad.reconstruct.surface import front, reconstruct_surface, surface_metrics
 
 SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
              generations=1, final_polish_rounds=5, simplify_history=False)
@@ -59,6 +60,13 @@ def test_front_cages_carry_exact_distances_both_ways():
     assert own[0]["data_to_fit_mean"] == m["data_to_fit_mean"]
     # the smallest cage is the farthest by the reported measure as well as by the ranked one
     assert points[0]["symmetric_distance"] > own[0]["symmetric_distance"]
+    # the in-memory front replays each point's cage, and the cage is the one measured
+    assert [(n, c) for n, c, _ in result.front] == [(p["vertices"], p["distance"]) for p in points]
+    for i, p in enumerate(points):
+        control = result.front_control(i)
+        assert control.n_vertices == p["vertices"]
+        again = surface_metrics(control, target, SurfaceConfig())["symmetric_distance"]
+        assert abs(again - p["symmetric_distance"]) <= 0.2 * p["symmetric_distance"]
 
 
 def test_the_template_fitted_joins_the_front_beside_the_searchs_own_cage():

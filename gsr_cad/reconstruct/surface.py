@@ -88,6 +88,7 @@ from ..geometry.subdivision import get_catmull_clark
 from ..geometry.surface_distance import (NearTriangles, area_samples, chord_sag, cloud_distance,
                                          facet_triangles, mixed_mean_distance, sampling_radius)
 from ..ops import mesh_kernel as MK
+from ..ops.base import replay
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import REFINE_STALL_GAIN, SurfaceConfig
@@ -1256,12 +1257,21 @@ class Snapshot:
 
 @dataclasses.dataclass
 class SurfaceResult(Result):
-    """A surface :class:`Result` plus in-memory extras: the target, the template and the best individual
-    at a few generations (``snapshots``, for the paper's Figure 5 layout)."""
+    """A surface :class:`Result` plus in-memory extras: the target, the template, the best individual
+    at a few generations (``snapshots``, for the paper's Figure 5 layout) and the accuracy/complexity front
+    with each point's genome (``front``: ``(control vertices, distance, genome)``, as ``metrics["front"]``;
+    :meth:`front_control` builds a point's cage)."""
 
     target: SurfaceTarget | None = dataclasses.field(default=None, repr=False)
     template: PolyMesh | None = dataclasses.field(default=None, repr=False)
     snapshots: list[Snapshot] = dataclasses.field(default_factory=list, repr=False)
+    front: list[tuple[int, float, tuple]] = dataclasses.field(default_factory=list, repr=False)
+
+    def front_control(self, index: int) -> PolyMesh:
+        """The control mesh of the front's point ``index`` (its genome replayed on the template)."""
+        if self.template is None:
+            raise InputError("this result holds no template to replay its front on")
+        return replay(self.template, self.front[index][2])
 
 
 def _letters(genome: tuple) -> str:
@@ -1436,7 +1446,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
     })
     return SurfaceResult(kind="surface", config=cfg, seed=run.seed, genome=final, metrics=metrics,
                          history=run.history, control_mesh=control, interrupted=run.interrupted,
-                         target=tgt, template=tmpl, snapshots=snapshots)
+                         target=tgt, template=tmpl, snapshots=snapshots, front=list(pareto))
 
 
 FRONT_METRIC_POINTS = 5000
