@@ -489,9 +489,19 @@ class NearTriangles:
     def closest_triangles(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(distance, closest point, triangle index)`` of every row of ``points`` ``(q, 3)``."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if len(p) == 0:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
         _, idx = self._tree.query(p, k=self.k)
-        tri = self._owner[np.asarray(idx).reshape(len(p), self.k)].ravel()
-        d, point, _ = self._data.closest(np.repeat(p, self.k, axis=0), tri)
-        best = np.argmin(d.reshape(len(p), self.k), axis=1)
-        pick = np.arange(len(p)) * self.k + best
+        tri = np.sort(self._owner[np.asarray(idx).reshape(len(p), self.k)], axis=1)
+        # each distinct triangle once per query (a query's nearest samples mostly share a few triangles)
+        fresh = np.ones(tri.shape, dtype=bool)
+        fresh[:, 1:] = tri[:, 1:] != tri[:, :-1]
+        query, slot = np.nonzero(fresh)
+        tri = tri[query, slot]
+        d, point, _ = self._data.closest(p[query], tri)
+        starts = np.flatnonzero(np.r_[True, query[1:] != query[:-1]])
+        nearest = np.minimum.reduceat(d, starts)
+        # the first of each query's nearest (lowest triangle index on a tie): same as a full argmin
+        pick = np.flatnonzero(d == nearest[query])
+        pick = pick[np.r_[True, query[pick[1:]] != query[pick[:-1]]]]
         return d[pick], point[pick], tri[pick]
