@@ -173,11 +173,44 @@ def test_freecad_surface_macro_history_patches_and_mesh(exported):
     checks = FreecadMacroExporter().validate(files[".FCMacro"], result)
     assert failures(checks) == []
     got = statuses(checks)
-    for check in ("JSON summary", "one object per op", "op labels", "op records", "only the last step visible",
-                  "history control meshes", "limit surface: valid closed solid", "limit surface: poles",
+    for check in ("JSON summary", "one object per op or run of moves", "op labels", "op records",
+                  "only the last step visible", "history control meshes", "limit surface: valid closed solid", "limit surface: poles",
                   "limit surface: volume positive", "limit mesh (level 2)"):
         assert got[check] == "pass", check
     assert any(k.startswith("limit surface: FreeCAD's") and v == "pass" for k, v in got.items())
+
+
+# a refined result's history: structural ops, then a run of vertex moves, an op, and another run
+MOVES = (Extrude(5, 0.42), *(TranslateVertex(v, (0.01 * v, -0.02, 0.03)) for v in range(12)), EdgeLoop(0),
+         *(TranslateVertex(v, (0.0, 0.01, -0.01 * v)) for v in range(0, 16, 3)))
+
+
+@pytest.mark.freecad
+def test_freecad_runs_of_moves_are_one_object_each_and_stay_editable(tmp_path):
+    _need("freecad")
+    from gsr_cad.exporters.checks import freecad_read
+    from gsr_cad.exporters.freecad import surface_steps
+
+    result = surface_result(MOVES)
+    macro = FreecadMacroExporter()
+    (path,) = macro.export(result, tmp_path, "moves")
+    assert surface_steps(surface_model(result)) == [(0, 0), (1, 1), (2, 13), (14, 14), (15, 20)]
+    checks = macro.validate(path, result)
+    assert failures(checks) == []
+    assert statuses(checks)["one object per op or run of moves"] == "pass"
+    fcstd = tmp_path / "moves.FCStd"
+    macro.save_document(result, fcstd)
+    seen = freecad_read(fcstd, [0.0, 1.0], [0.0, 1.0])
+    assert [len(s["labels"]) for s in seen["steps"]] == [0, 0, 12, 0, 6]
+    np.testing.assert_allclose(seen["steps"][-1]["nodes"], result.control_mesh.vertices, atol=1e-9)
+    # a move inside a run, edited in the macro: its record no longer matches ours
+    text = path.read_text(encoding="utf-8")
+    move = "'delta': [0.05, -0.02, 0.03]"
+    assert text.count(move) == 1
+    edited = tmp_path / "edited.FCMacro"
+    edited.write_text(text.replace(move, "'delta': [0.06, -0.02, 0.03]"), encoding="utf-8")
+    got = statuses(macro.validate(edited, result))
+    assert got["op records"] == "FAIL" and got["history control meshes"] == "FAIL"
 
 
 @pytest.mark.freecad

@@ -13,7 +13,8 @@ and keeps its points in "Points", its corners in "Corners" and its op as JSON in
 
 Surfaces get a parametric history too, on the connectivity gsr_cad found: one FeaturePython object per
 step (the template, then the control mesh after each op, shown as the compound of its face polygons; all
-hidden but the last), each linked to the step before. An op's numbers are editable properties ("Delta",
+hidden but the last), each linked to the step before; a run of vertex moves is one object ("Vertices",
+"Deltas": one entry per move, "Labels"). An op's numbers are editable properties ("Delta",
 "Distance", "Thickness", "Offset", "Factor"; its element indices are read-only); recomputing replays every
 later op with this file's own copy of gsr_cad's op geometry and rebuilds "LimitMesh", the Catmull-Clark
 limit mesh, as fixed weighted sums of the control vertices (DATA["limit_rows"]). "LimitSurface" is the
@@ -285,8 +286,10 @@ PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"},
 
 
 class MeshStep:
-    """One step of the surface history: the template (no Base), or an op replayed on its Base's control
-    mesh. The op's numbers are editable properties; its element indices are fixed (read-only)."""
+    """One step of the surface history: the template (no Base), an op replayed on its Base's control mesh, or
+    a run of vertex moves (one object for the run: "Vertices" read-only, "Deltas" editable, "Labels" and, after
+    a recompute, "Op" the JSON list of the moves). An op's numbers are editable properties; its element
+    indices are fixed (read-only)."""
 
     def __init__(self, obj, number):
         step = DATA["steps"][number]
@@ -295,8 +298,18 @@ class MeshStep:
         obj.addProperty("App::PropertyString", "Op", "gsr_cad", "the modelling op of this step (JSON)")
         obj.Number = number
         obj.setEditorMode("Number", 1)
-        op = step["op"]
-        if op is None:
+        op = step.get("op")
+        if "moves" in step:
+            obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the step these moves apply to")
+            obj.addProperty("App::PropertyStringList", "Labels", "gsr_cad", "each move of the run")
+            obj.addProperty("App::PropertyIntegerList", "Vertices", "gsr_cad", "the vertex each move translates")
+            obj.addProperty("App::PropertyVectorList", "Deltas", "gsr_cad", "each move's translation (editable)")
+            obj.Labels = step["labels"]
+            obj.Vertices = [m["vertex"] for m in step["moves"]]
+            obj.Deltas = [App.Vector(*m["delta"]) for m in step["moves"]]
+            obj.setEditorMode("Labels", 1)
+            obj.setEditorMode("Vertices", 1)
+        elif op is None:
             obj.Points = [App.Vector(*p) for p in step["vertices"]]
         else:
             obj.addProperty("App::PropertyLink", "Base", "gsr_cad", "the step this op applies to")
@@ -314,8 +327,16 @@ class MeshStep:
 
     def execute(self, obj):
         step = DATA["steps"][obj.Number]
-        op = step["op"]
-        if op is not None:
+        op = step.get("op")
+        if "moves" in step:
+            P = [[v.x, v.y, v.z] for v in obj.Base.Points]
+            moves = []
+            for vertex, d in zip(obj.Vertices, obj.Deltas):
+                replay_translate_vertex(P, {}, vertex, [d.x, d.y, d.z])
+                moves.append({"op": "translate_vertex", "vertex": vertex, "delta": [d.x, d.y, d.z]})
+            obj.Points = [App.Vector(*p) for p in P]
+            obj.Op = json.dumps(moves)
+        elif op is not None:
             params = {}
             for name in op:
                 if name != "op":
@@ -326,7 +347,8 @@ class MeshStep:
             obj.Points = [App.Vector(*p) for p in P]
             obj.Op = json.dumps(dict({"op": op["op"]}, **params))
         pts = list(obj.Points)
-        obj.Shape = Part.Compound([Part.makePolygon([pts[i] for i in f] + [pts[f[0]]]) for f in step["faces"]])
+        faces = DATA["topologies"][step["topology"]]
+        obj.Shape = Part.Compound([Part.makePolygon([pts[i] for i in f] + [pts[f[0]]]) for f in faces])
 
 
 class LimitMesh:
@@ -404,8 +426,9 @@ def build(fcstd_path=None):
 
 def summary(doc):
     """What was built, as a JSON-ready dict."""
-    out = {"document": doc.Name, "file": doc.FileName or None, "kind": DATA["kind"], "steps": len(DATA["steps"]),
-           "labels": [step["label"] for step in DATA["steps"]]}
+    labels = [label for step in DATA["steps"] for label in step.get("labels", [step["label"]])]
+    out = {"document": doc.Name, "file": doc.FileName or None, "kind": DATA["kind"], "steps": len(labels),
+           "objects": len(DATA["steps"]), "labels": labels}
     if DATA["kind"] == "curve":
         curve = doc.getObject("Curve").Shape
         out.update(degree=DATA["degree"], poles=len(doc.getObject("Curve").Base.Points), curve_length=curve.Length)

@@ -45,7 +45,7 @@ def dump_document(doc):
     for o in (history.Group if history else []):
         shape = getattr(o, "Shape", None)
         steps.append({"label": o.Label, "type": o.TypeId, "visible": bool(o.Visibility),
-                      "op": getattr(o, "Op", None),
+                      "op": getattr(o, "Op", None), "labels": list(getattr(o, "Labels", [])),
                       "corners": list(getattr(o, "Corners", [])),
                       "nodes": [[v.x, v.y, v.z] for v in getattr(o, "Points", getattr(o, "Nodes", []))],
                       "wires": [[[v.X, v.Y, v.Z] for v in w.OrderedVertexes] for w in shape.Wires] if shape else []})
