@@ -14,7 +14,7 @@ from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import EdgeLoop
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
-from gsr_cad.reconstruct.refine import candidates, limit_cage, refine, residual, split_all
+from gsr_cad.reconstruct.refine import candidates, inset_batch, limit_cage, refine, residual, split_all
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -58,6 +58,26 @@ def test_the_residual_points_at_the_face_the_target_leaves():
     assert np.all(cube.vertices[list(cube.faces[top]), 2] > 0)  # the face the bump grows from
     letters = {op.letter for op in candidates(cube, res)}
     assert {"L", "E", "I"} <= letters
+    batch = inset_batch(cube, res)
+    assert [op.face for op in batch] == list(np.argsort(-res.total, kind="stable")[:2])  # 2: a cube's least
+    built = cube
+    for op in batch:  # the faces keep their indices: the insets apply in turn
+        built = op.apply(built)
+    assert built.n_vertices == 16 and built.n_faces == 14
+
+
+def test_a_batch_of_insets_takes_the_residual_share_and_at_most_a_quarter_of_the_faces():
+    truth = _blob(5)
+    fine = get_catmull_clark(_cube(), 2, "all").refine(_cube().vertices)  # 96 faces
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    res = residual(SurfaceProblem(target, SurfaceConfig(max_target_points=2000), fine), fine)
+    batch = inset_batch(fine, res)
+    faces = [op.face for op in batch]
+    order = list(np.argsort(-res.total, kind="stable"))
+    assert faces == order[:len(faces)] and 2 <= len(faces) <= 24
+    share = res.total[faces].sum() / res.total.sum()
+    assert share >= 0.5 or len(faces) == 24
+    assert res.total[faces[:-1]].sum() / res.total.sum() < 0.5 or len(faces) == 24
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -145,6 +165,7 @@ def test_the_refinement_keeps_going_when_no_single_proposal_is_left(monkeypatch)
 
     monkeypatch.setattr(refine_module, "candidates", lambda mesh, res: [])
     monkeypatch.setattr(refine_module, "split_all", lambda state, fitted: None)
+    monkeypatch.setattr(refine_module, "inset_batch", lambda mesh, res: ())
     target = surface_target(limit_mesh(_blob(0), 3), "blob")
     problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
     problem.max_faces = 400
@@ -182,3 +203,43 @@ def test_a_fit_past_its_deadline_runs_no_round():
     vertices, cost = problem.fit(cube, 5, adaptive=True, deadline=time.perf_counter())
     np.testing.assert_array_equal(vertices, cube.vertices)
     assert cost == problem.fit(cube, 0)[1] > problem.fit(cube, 5, adaptive=True)[1]
+
+
+def test_when_no_trial_gains_the_closest_proposals_get_their_full_fit(monkeypatch):
+    """A proposal's first rounds start behind a converged cage; with no trial rounds at all none gains, and the
+    refinement still grows (before, it stopped at its first cage)."""
+    import gsr_cad.reconstruct.refine as refine_module
+
+    monkeypatch.setattr(refine_module, "TRIAL_ROUNDS", 0)
+    monkeypatch.setattr(refine_module, "split_all", lambda state, fitted: None)
+    monkeypatch.setattr(refine_module, "_fallback", lambda *args: None)
+    target = surface_target(limit_mesh(_blob(1), 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
+    problem.max_faces = 400
+    genome, levels = refine(problem, (), 2e-4, time.perf_counter() + 60, 400)
+    assert len(levels) >= 2 and levels[-1].cost < 0.995 * levels[0].cost
+
+
+def test_a_winner_whose_refinement_stalls_leaves_the_time_to_the_template(monkeypatch):
+    """The searched winner's structure that no op can grow (here: no room for one more face) is not the end:
+    the template is refined in the time left, and the closer of the two stands."""
+    import gsr_cad.reconstruct.surface as surface_module
+
+    real = surface_module.refine
+    calls = []
+
+    def stalled_winner(problem, genome, goal, deadline, max_faces, *args, **kwargs):
+        calls.append(len(genome))
+        if genome:  # the winner: no face may be added
+            max_faces = problem.control_mesh(genome).n_faces
+        return real(problem, genome, goal, deadline, max_faces, *args, **kwargs)
+
+    monkeypatch.setattr(surface_module, "refine", stalled_winner)
+    target = surface_target(limit_mesh(_blob(3), 3), "blob")
+    small = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+                 generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
+    result = reconstruct_surface(target, seed=1, max_seconds=90, refine_until=1e-4, **small)
+    rows = result.metrics["refinement"]
+    assert calls[0] > 0 and calls[1] == 0  # the winner's ops, then the template's none
+    assert rows[0]["vertices"] == 8 and rows[-1]["vertices"] > 8
+    assert result.metrics["n_control_vertices"] == rows[-1]["vertices"]

@@ -7,13 +7,15 @@ each point depends on them (its sparse row of the limit map), then to the faces 
 proposals aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
 extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the
 face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
-bends; and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
+bends; insets of the faces carrying half the residual at once (:func:`inset_batch`: vertices added where
+the error is, not around whole rings); and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
 connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
 proposal is fitted by a few rounds of the adaptive least-squares fit
 (:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
 of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most for
 its growth (``LEVEL_COST``) is kept and fitted further, the next one when its full fit gains too little or
-its moves cannot replay (then the cage the replayable moves reach stands, if it gains). When no single
+its moves cannot replay (then the cage the replayable moves reach stands, if it gains); when no trial gains,
+the closest ones get their full fit all the same. When no single
 proposal gains, several edge loops are added at once (:func:`_fallback`). Faces the fit starts from
 unsound (a split of a skewed cage) keep their vertices; the rest of the cage still moves. The fits' back
 direction projects onto a fine mesh target's triangles near a bounded area sample of it
@@ -48,6 +50,8 @@ from ..ops.mesh_kernel import distinct_rings, edge_ring
 from .result import MAX_OPS
 
 TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
+BATCH_SHARE = 0.5  # the batch of insets (:func:`inset_batch`) covers the faces with this share of the residual
+BATCH_FACES = 0.25  # and at most this share of the faces
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
@@ -162,6 +166,23 @@ def candidates(mesh: PolyMesh, res: Residual, n_loops: int = 3) -> list[MeshOp]:
             u, v = edges[inner[k]]
             ops.append(Bevel(int(inner[k]), 0.15 * float(np.linalg.norm(mesh.vertices[u] - mesh.vertices[v]))))
     return ops
+
+
+def inset_batch(mesh: PolyMesh, res: Residual) -> tuple[MeshOp, ...]:
+    """Insets of the faces carrying ``BATCH_SHARE`` of the residual, most first (at most a ``BATCH_FACES`` share of
+    the faces, at least two): vertices added where the error is, where an edge loop's ring or a split adds them
+    around the whole cage, through regions the surface already fits. Each face's inset is ``0.3`` of its inradius;
+    the faces keep their indices, so the insets apply in turn. Empty when fewer than two faces carry residual."""
+    order = np.argsort(-res.total, kind="stable")
+    share = np.cumsum(res.total[order]) / max(float(res.total.sum()), 1e-300)
+    count = int(np.searchsorted(share, BATCH_SHARE)) + 1
+    count = max(2, min(count, int(BATCH_FACES * mesh.n_faces)))
+    ops = []
+    for f in order[:count]:
+        size = _inradius(mesh, int(f))
+        if size > 0 and res.total[f] > 0:
+            ops.append(Inset(int(f), 0.3 * size))
+    return tuple(ops) if len(ops) >= 2 else ()
 
 
 def split_all(state: PolyMesh, fitted: PolyMesh) -> tuple[tuple[MeshOp, ...], PolyMesh, PolyMesh] | None:
@@ -361,36 +382,38 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             split = None if split is None else (split[0], None, split[2])
         if split is not None:
             proposals.append(split)
-        for op in candidates(mesh, res):
-            try:
-                b = op.apply(mesh)
-            except OpError:
+        batch = inset_batch(mesh, res)
+        for ops in [(op,) for op in candidates(mesh, res)] + ([batch] if batch else []):
+            b = _apply(ops, mesh)
+            if b is None:
                 continue
-            try:
-                a = op.apply(base_state)
-            except OpError:
-                a = None
-            proposals.append(((op,), a if a is not None and a.topology_key == b.topology_key else None, b))
+            a = _apply(ops, base_state)
+            proposals.append((ops, a if a is not None and a.topology_key == b.topology_key else None, b))
         scored = []
         for ops, a, b in proposals:
             # a split keeps the limit surface: it needs its whole fit to show what it gains
-            rounds = LEVEL_ROUNDS if len(ops) > 1 else TRIAL_ROUNDS
+            rounds = LEVEL_ROUNDS if len(ops) > 1 and ops is not batch else TRIAL_ROUNDS
             if out_of_time() or b.n_faces > max_faces or not _fit.fits_in_time(b, rounds):
                 continue
             try:
                 v, c = _fit(b, rounds)
             except GsrError:
                 continue
+            if not math.isfinite(c) or (c >= cost and rounds == LEVEL_ROUNDS):
+                continue  # a split fitted in full that does not gain
             gain = math.log(cost / c) / (math.log(b.n_vertices / mesh.n_vertices) + LEVEL_COST) if c > 0 else math.inf
-            if math.isfinite(c) and c < cost:
-                scored.append((gain, len(scored), ops, a, b, v, c))
+            # those not gaining yet after their trial rounds last, closest first
+            scored.append((c >= cost, -gain if c < cost else c, len(scored), ops, a, b, v, c))
         chosen = None
-        # the best gain per added vertex first; the next if its full fit gains too little or cannot replay
-        ranked = sorted(scored, key=lambda t: (-t[0], t[1]))
-        for _, _, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
+        # the best gain per added vertex first; the next if its full fit gains too little or cannot replay. When
+        # no trial gains, the closest get their full fit all the same: a coarse cage fitted to convergence is
+        # ahead of any proposal's first rounds (airplane's bevelled cube, 10 vertices at 2.3e-2 of the
+        # diagonal: every op's three rounds were behind it, and the refinement stopped there)
+        ranked = sorted(scored, key=lambda t: t[:3])
+        for *_, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
             if out_of_time():
                 break
-            if len(ops) == 1 and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the trial's fit stands
+            if (len(ops) == 1 or ops is batch) and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the trial's fit stands
                 v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
             if c < MIN_GAIN * cost:  # the level's fins and webs snapped before its residual aims the next ops
                 v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)

@@ -116,6 +116,9 @@ direction, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); the repor
 SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 CLOUD_POINTS_PER_FACE = 8  # data points a refined cage needs per face on a point cloud (refine_face_limit)
+RESTART_SHARE = 0.5
+"""When the refinement of the searched winner stops short of its goal with more than this share of its time left,
+the template is refined too (:func:`_refined`)."""
 
 
 def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
@@ -1667,8 +1670,19 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     meets = [entry for entry in front(found) if entry[1] <= goal]
     if pick and meets:
         return Growth(meets[0][2], meets[0][1], front(found), [])
-    final, levels = refine(grower, genome, goal, deadline, refine_face_limit(target, config.refine_max_faces),
-                           level, should_stop, tail)
+    faces = refine_face_limit(target, config.refine_max_faces)
+    started = time.perf_counter()
+    final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail)
+    quads = bool(np.all(grower.template.face_sizes == 4))
+    if (levels[-1].cost > goal and genome and deadline is not None and quads
+            and deadline - time.perf_counter() > RESTART_SHARE * (deadline - started)
+            and not (should_stop is not None and should_stop())):
+        # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
+        # and the closer of the two stands (airplane: the search's bevelled cube, 10 vertices, two pentagons, no
+        # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
+        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail)
+        if more[-1].cost < levels[-1].cost:
+            final, levels = again, more
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
