@@ -1675,6 +1675,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail)
     quads = bool(np.all(grower.template.face_sizes == 4))
     if (levels[-1].cost > goal and genome and deadline is not None and quads
+            and 4 * levels[-1].control.n_faces <= faces  # stalled, not stopped by the face budget
             and deadline - time.perf_counter() > RESTART_SHARE * (deadline - started)
             and not (should_stop is not None and should_stop())):
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
