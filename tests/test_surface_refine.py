@@ -14,7 +14,9 @@ from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import EdgeLoop
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
-from gsr_cad.reconstruct.refine import candidates, inset_batch, limit_cage, refine, residual, split_all
+from gsr_cad.errors import OpError
+from gsr_cad.reconstruct.refine import (_after, candidates, carried, edge_rings, inset_batch, limit_cage, refine,
+                                         residual, split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -246,3 +248,48 @@ def test_a_winner_whose_refinement_stalls_leaves_the_time_to_the_template(monkey
     assert calls[0] > 0 and calls[1] == 0  # the winner's ops, then the template's none
     assert rows[0]["vertices"] == 8 and rows[-1]["vertices"] > 8
     assert result.metrics["n_control_vertices"] == rows[-1]["vertices"]
+
+
+def _skewed_loop(seed: int = 0):
+    """A problem on a split cube, moves (that replay) skewing its cage, and an edge loop that folds a face on
+    the skewed cage: what a converged fit leaves for the next level's ops."""
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    problem = SurfaceProblem(surface_target(limit_mesh(fine, 2), "split cube"), SurfaceConfig(), fine)
+    rng = np.random.default_rng(seed)
+    moves, skewed, _ = problem._moves(fine, fine.vertices + 0.25 * rng.normal(size=fine.vertices.shape))
+    for e, _faces in edge_rings(skewed):
+        try:
+            EdgeLoop(e).apply(skewed)
+        except OpError:
+            return problem, moves, skewed, EdgeLoop(e)
+    raise AssertionError("no edge loop folds a face on the skewed cage")
+
+
+def test_ops_that_fold_a_face_on_the_fitted_cage_follow_moves_to_a_smoother_one():
+    problem, moves, skewed, loop = _skewed_loop()
+    prefix, built = _after(problem, moves, (loop,))
+    assert built is not None and len(prefix) > len(moves) and prefix[:len(moves)] == moves
+    replayed = problem.control_mesh(prefix + (loop,))  # the history replays, to the state returned
+    assert np.allclose(replayed.vertices, built.vertices)
+    assert connectivity_hash(built) == connectivity_hash(loop.apply(limit_cage(skewed)))
+
+
+def test_an_op_that_folds_a_face_is_carried_onto_the_fitted_cage():
+    _, _, skewed, loop = _skewed_loop()
+    out = carried((loop,), skewed)
+    assert out is not None
+    n = skewed.n_vertices
+    assert np.allclose(out.vertices[:n], skewed.vertices)  # the fitted cage's vertices stay where they are
+    assert out.n_vertices > n and out.topology_key != skewed.topology_key
+    # each new vertex is a ring edge's midpoint on the smoother cage: carried, that edge's midpoint on the fitted one
+    edges = {frozenset(e) for e in skewed.topology.edges.tolist()}
+    for v in range(n, out.n_vertices):
+        ends = [u for f in out.faces if v in f for u in (f[f.index(v) - 1], f[(f.index(v) + 1) % len(f)]) if u < n]
+        pair = [frozenset(p) for p in [(a, b) for a in ends for b in ends if a < b] if frozenset(p) in edges]
+        assert pair, "a new vertex between two old ones"
+        a, b = tuple(pair[0])
+        mid = 0.5 * (skewed.vertices[a] + skewed.vertices[b])
+        assert np.allclose(out.vertices[v], mid)
+    flat = PolyMesh.from_faces(np.eye(3), [(0, 1, 2)])
+    assert carried((EdgeLoop(0),), flat) is None  # no ring on a triangle: no smoother cage helps

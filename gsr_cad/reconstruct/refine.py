@@ -30,8 +30,10 @@ would exceed what a result holds (``MAX_OPS``).
 History: the structural ops replay on the geometry the search left them (the template's, moved by the
 search's ops), where they apply cleanly, followed by the moves of the final fit (in stages when the
 straight path would fold a face); when those moves cannot replay, a level's ops follow the previous
-level's moves instead (after moves onto the limit cage, :func:`limit_cage`, where the fitted quads are
-too skewed for them). Every level is a point of the accuracy/complexity front.
+level's moves instead (after moves onto a smoother cage, :func:`limit_cage` and its own, where the fitted
+quads are too skewed for them, :func:`_after`). A proposal that folds a face on the fitted cage is built on such a
+smoother cage and carried back onto the fitted one (:func:`carried`); on a converged cage the local proposals'
+fits start lightly faired (``CONVERGED_FAIRING``). Every level is a point of the accuracy/complexity front.
 """
 
 from __future__ import annotations
@@ -66,10 +68,15 @@ SNAP_FACTOR = 2.0
 LEVEL_SNAPS = 1  # snap passes after each level's fit (LEVEL_ROUNDS rounds each)
 SNAP_ROUNDS = 30
 REACH_REFITS = 2
+SMOOTHINGS = 3  # smoother cages a level's ops may follow when they fold a face on the fitted one (:func:`_after`)
 REACH_SLACK = 1.05  # a partly replayed level's cage is refitted while it is this much farther than its fit
 """Where some of a level's moves refuse (they would fold a face on the way), the cage the others reach is fitted
 again from there and moved to, up to this many times (example010's first split: 7 of 42 vertices refused and the
 refinement stopped at 2.3e-2 of the diagonal with four fifths of its time left)."""
+CONVERGED_FAIRING = 0.1
+"""First weight of the fairing rows in the fits of local ops on a converged cage (the default's hundredth,
+see :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`): LetterBlock's 324-vertex cage, an inset gains 2.2 %
+in 12 rounds with it, with the default the fit stalls after 5 rounds at a 0.2 % loss."""
 STIFFNESS = 0.1  # first stiffness of the adaptive fits (see SurfaceProblem.fit)
 LEVEL_COST = 1.0
 """A level's own cost in the proposals' ranking, as the log of a cage growth: a proposal scores its log-gain
@@ -187,6 +194,42 @@ def inset_batch(mesh: PolyMesh, res: Residual) -> tuple[MeshOp, ...]:
         if size > 0 and res.total[f] > 0:
             ops.append(Inset(int(f), 0.3 * size))
     return tuple(ops) if len(ops) >= 2 else ()
+
+
+def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh) -> PolyMesh | None:
+    """``ops`` applied where they fold a face on the fitted ``mesh``: on its first limit cage where they apply
+    (:func:`limit_cage`, up to ``SMOOTHINGS`` deep), then carried back onto ``mesh``: each of its vertices moved
+    by its own offset from that cage, each new vertex by the mean offset of its neighbours that have one. None
+    when they apply on none. On a converged cage most ops fold a face (LetterBlock, 324 control vertices: every
+    edge loop and the bevel), though its fit would gain (each loop: 2-3 % in 12 rounds)."""
+    smooth = mesh
+    for _ in range(SMOOTHINGS):
+        smooth = limit_cage(smooth)
+        built = _apply(ops, smooth)
+        if built is not None:
+            break
+    else:
+        return None
+    n = mesh.n_vertices
+    offset = np.zeros_like(built.vertices)
+    offset[:n] = mesh.vertices - smooth.vertices
+    known = np.zeros(built.n_vertices, dtype=bool)
+    known[:n] = True
+    corners, sizes = built.corners, built.face_sizes
+    starts = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    nxt = starts + (np.arange(len(corners)) - starts + 1) % np.repeat(sizes, sizes)
+    a = np.concatenate([corners, corners[nxt]])
+    b = np.concatenate([corners[nxt], corners])
+    adjacency = sp.csr_matrix((np.ones(len(a)), (a, b)), shape=(built.n_vertices,) * 2)
+    adjacency.data[:] = 1.0
+    while not known.all():
+        count = adjacency @ known.astype(np.float64)
+        reach = ~known & (count > 0)
+        if not reach.any():
+            return None
+        offset[reach] = (adjacency @ (offset * known[:, None]))[reach] / count[reach, None]
+        known |= reach
+    return built.with_vertices(built.vertices + offset)
 
 
 def split_all(state: PolyMesh, fitted: PolyMesh) -> tuple[tuple[MeshOp, ...], PolyMesh, PolyMesh] | None:
@@ -387,12 +430,19 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         if split is not None:
             proposals.append(split)
         batch = inset_batch(mesh, res)
-        for ops in [(op,) for op in candidates(mesh, res)] + ([batch] if batch else []):
+        local = [(op,) for op in candidates(mesh, res)] + ([batch] if batch else [])
+        for ops in local:
             b = _apply(ops, mesh)
+            if b is None:
+                b = carried(ops, mesh)
             if b is None:
                 continue
             a = _apply(ops, base_state)
             proposals.append((ops, a if a is not None and a.topology_key == b.topology_key else None, b))
+        # the local ops on a converged cage: fitted lightly faired, as a converged fit is continued (at full
+        # weight the fairing rows pull its cage off the target: every op looked like a loss, example007 at 400
+        # control vertices, and the refinement stopped with half its time left)
+        fairing = CONVERGED_FAIRING if len(levels) > 1 else None
         scored = []
         for ops, a, b in proposals:
             # a split keeps the limit surface: it needs its whole fit to show what it gains
@@ -400,7 +450,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if out_of_time() or b.n_faces > max_faces or not _fit.fits_in_time(b, rounds):
                 continue
             try:
-                v, c = _fit(b, rounds)
+                v, c = _fit(b, rounds, fairing=fairing if ops in local else None)
             except GsrError:
                 continue
             if not math.isfinite(c) or (c >= cost and rounds == LEVEL_ROUNDS):
@@ -418,7 +468,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if out_of_time():
                 break
             if (len(ops) == 1 or ops is batch) and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the trial's fit stands
-                v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
+                v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS, fairing=fairing if ops in local else None)
             if c < MIN_GAIN * cost:  # the level's fins and webs snapped before its residual aims the next ops
                 v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)
                 chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
@@ -541,7 +591,7 @@ def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
         if not left:
             return ops, base + ops, a, step, fitted, c
         partial.append((left, 0, base + ops, a, step, reached))
-    prefix, state = _after(problem, full, ops)
+    prefix, state = _after(problem, full, ops, deadline)
     if state is not None:
         step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline, via)
         if not left:
@@ -648,17 +698,25 @@ def _apply(ops: tuple, state: PolyMesh) -> PolyMesh | None:
     return state
 
 
-def _after(problem, genome: tuple, ops: tuple) -> tuple[tuple, PolyMesh | None]:
-    """Where ``ops`` can follow ``genome``: ``(genome, or genome plus the moves to its limit cage, the state
-    the ops then build)``; None for the state when they apply at neither."""
+def _after(problem, genome: tuple, ops: tuple, deadline: float | None = None) -> tuple[tuple, PolyMesh | None]:
+    """Where ``ops`` can follow ``genome``: ``(genome, or genome plus moves towards a smoother cage, the state
+    the ops then build)``; None for the state when they apply at none. The smoother cages are the limit cage
+    (:func:`limit_cage`) and its own limit cages, up to ``SMOOTHINGS`` deep, each reached by the moves that
+    replay: a converged cage's quads are skewed enough that an edge loop folds a face on it and on its first
+    limit cage (LetterBlock, 162 control vertices: the split to 642 gained 1.06e-2 -> 6.3e-3 of the diagonal,
+    could not be committed and the refinement lost it). No staged move starts after ``deadline``."""
     state = problem.control_mesh(genome)
     built = _apply(ops, state)
     if built is not None:
         return genome, built
-    prefix = _reach(problem, genome, state, limit_cage(state).vertices)
-    if prefix is None:
-        return genome, None
-    return prefix, _apply(ops, problem.control_mesh(prefix))
+    smooth = state
+    for _ in range(SMOOTHINGS):
+        smooth = limit_cage(smooth)
+        moves, reached, _ = problem._moves(state, smooth.vertices, deadline)
+        built = _apply(ops, reached)
+        if built is not None:
+            return genome + moves, built
+    return genome, None
 
 
 def _reach_partial(problem, base: tuple, state: PolyMesh, vertices: np.ndarray,
