@@ -11,12 +11,12 @@ from gsr_cad.geometry.isomorphism import connectivity_hash
 from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
-from gsr_cad.ops.mesh import EdgeLoop
+from gsr_cad.ops.mesh import EdgeLoop, Extrude, Inset
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
-from gsr_cad.reconstruct.refine import (_after, candidates, carried, edge_rings, inset_batch, limit_cage, refine,
-                                         residual, split_all)
+from gsr_cad.reconstruct.refine import (_after, candidates, carried, edge_rings, inset_batch, limit_cage, pocket,
+                                         refine, residual, split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -248,6 +248,25 @@ def test_a_winner_whose_refinement_stalls_leaves_the_time_to_the_template(monkey
     assert calls[0] > 0 and calls[1] == 0  # the winner's ops, then the template's none
     assert rows[0]["vertices"] == 8 and rows[-1]["vertices"] > 8
     assert result.metrics["n_control_vertices"] == rows[-1]["vertices"]
+
+
+
+def test_the_residual_points_at_the_face_over_a_pocket_and_a_pocket_is_proposed():
+    cube = _cube()
+    top = next(f for f in range(cube.n_faces) if np.all(cube.vertices[list(cube.faces[f]), 2] > 0))
+    dented = Extrude(top, -0.6).apply(Inset(top, 0.5).apply(cube))  # a square pocket in the top face
+    target = surface_target(limit_mesh(dented, 3), "pocket")
+    problem = SurfaceProblem(target, SurfaceConfig(), cube)
+    fitted = cube.with_vertices(problem.fit(cube, 12, min_gain=1.0, adaptive=True, stiffness=0.1)[0])
+    res = residual(problem, fitted)
+    assert int(np.argmax(res.inward)) == top
+    ops = pocket(fitted, res)
+    assert [(op.letter, op.face) for op in ops] == [("I", top), ("E", top)] and ops[1].distance < 0
+    inset = ops[0].apply(fitted)
+    fit = lambda mesh: problem.fit(mesh, 12, min_gain=1.0, adaptive=True, stiffness=0.1)[1]  # noqa: E731
+    before, inset_only, carved = problem.fit(fitted, 0)[1], fit(inset), fit(ops[1].apply(inset))
+    # the pocket's cage reaches into the target's pocket, which neither the cube's nor the inset's can
+    assert carved < 0.1 * before and carved < 0.5 * inset_only
 
 
 def _skewed_loop(seed: int = 0):

@@ -5,7 +5,8 @@ residual of the current cage (the target's points -> their foot points on the ex
 surface's area samples -> the target) and attributes it to the control vertices by the weights with which
 each point depends on them (its sparse row of the limit map), then to the faces around them. The
 proposals aim at it: an edge loop (L) across each of the rings of quads carrying most residual, an
-extrude (E) of the face under the largest outward error (arms, ears, protrusions), an inset (I) of the
+extrude (E) of the face under the largest outward error (arms, ears, protrusions), a pocket (an inset, then an
+extrude into the mesh, :func:`pocket`) of the face over the largest inward error (engravings, dimples), an inset (I) of the
 face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
 bends; insets of the faces carrying half the residual at once (:func:`inset_batch`: vertices added where
 the error is, not around whole rings); and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
@@ -32,8 +33,7 @@ search's ops), where they apply cleanly, followed by the moves of the final fit 
 straight path would fold a face); when those moves cannot replay, a level's ops follow the previous
 level's moves instead (after moves onto a smoother cage, :func:`limit_cage` and its own, where the fitted
 quads are too skewed for them, :func:`_after`). A proposal that folds a face on the fitted cage is built on such a
-smoother cage and carried back onto the fitted one (:func:`carried`); on a converged cage the local proposals'
-fits start lightly faired (``CONVERGED_FAIRING``). Every level is a point of the accuracy/complexity front.
+smoother cage and carried back onto the fitted one (:func:`carried`). Every level is a point of the accuracy/complexity front.
 """
 
 from __future__ import annotations
@@ -73,10 +73,6 @@ REACH_SLACK = 1.05  # a partly replayed level's cage is refitted while it is thi
 """Where some of a level's moves refuse (they would fold a face on the way), the cage the others reach is fitted
 again from there and moved to, up to this many times (example010's first split: 7 of 42 vertices refused and the
 refinement stopped at 2.3e-2 of the diagonal with four fifths of its time left)."""
-CONVERGED_FAIRING = 0.1
-"""First weight of the fairing rows in the fits of local ops on a converged cage (the default's hundredth,
-see :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`): LetterBlock's 324-vertex cage, an inset gains 2.2 %
-in 12 rounds with it, with the default the fit stalls after 5 rounds at a 0.2 % loss."""
 STIFFNESS = 0.1  # first stiffness of the adaptive fits (see SurfaceProblem.fit)
 LEVEL_COST = 1.0
 """A level's own cost in the proposals' ranking, as the log of a cage growth: a proposal scores its log-gain
@@ -97,11 +93,12 @@ class Level:
 
 @dataclasses.dataclass(frozen=True)
 class Residual:
-    """Residual of a cage attributed to its faces: ``total`` (both directions) and ``outward`` (target
-    points outside the surface, along its normal) per face."""
+    """Residual of a cage attributed to its faces: ``total`` (both directions), ``outward`` (target
+    points outside the surface, along its normal) and ``inward`` (inside it) per face."""
 
     total: np.ndarray
     outward: np.ndarray
+    inward: np.ndarray
 
 
 def residual(problem, mesh: PolyMesh) -> Residual:
@@ -113,15 +110,17 @@ def residual(problem, mesh: PolyMesh) -> Residual:
     d_fwd = problem.point_weight * foot.distance
     signed = np.einsum("ij,ij->i", problem.points - foot.point, foot.normal)
     out_fwd = problem.point_weight * np.maximum(signed, 0.0)
+    in_fwd = problem.point_weight * np.maximum(-signed, 0.0)
     d_back = pairs.weight * np.linalg.norm(pairs.goal - pairs.samples.point, axis=1)
     R1 = abs(surface.rows(foot))
     R2 = abs(surface.rows(pairs.samples))
     per_vertex = R1.T @ d_fwd + R2.T @ d_back
     out_vertex = R1.T @ out_fwd
+    in_vertex = R1.T @ in_fwd
     sizes = mesh.face_sizes
     inc = sp.csr_matrix((np.ones(len(mesh.corners)), (np.repeat(np.arange(mesh.n_faces), sizes), mesh.corners)),
                         shape=(mesh.n_faces, mesh.n_vertices))
-    return Residual(np.asarray(inc @ per_vertex).ravel() / sizes, np.asarray(inc @ out_vertex).ravel() / sizes)
+    return Residual(*(np.asarray(inc @ x).ravel() / sizes for x in (per_vertex, out_vertex, in_vertex)))
 
 
 def edge_rings(mesh: PolyMesh) -> list[tuple[int, list[int]]]:
@@ -177,6 +176,18 @@ def candidates(mesh: PolyMesh, res: Residual, n_loops: int = 3) -> list[MeshOp]:
             u, v = edges[inner[k]]
             ops.append(Bevel(int(inner[k]), 0.15 * float(np.linalg.norm(mesh.vertices[u] - mesh.vertices[v]))))
     return ops
+
+
+def pocket(mesh: PolyMesh, res: Residual) -> tuple[MeshOp, ...]:
+    """A pocket in the face with most inward residual (target points inside the surface: an engraving, a
+    dimple, a slot): an inset by ``0.3`` of its inradius, then an extrude of the inner face into the mesh by
+    ``0.25`` of it (an inward extrude alone would stand its walls on the neighbouring faces where they meet at a
+    right angle or less). Empty when no face has inward residual."""
+    if not np.any(res.inward > 0):
+        return ()
+    f = int(np.argmax(res.inward))
+    size = _inradius(mesh, f)
+    return (Inset(f, 0.3 * size), Extrude(f, -0.25 * size)) if size > 0 else ()
 
 
 def inset_batch(mesh: PolyMesh, res: Residual) -> tuple[MeshOp, ...]:
@@ -430,7 +441,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         if split is not None:
             proposals.append(split)
         batch = inset_batch(mesh, res)
-        local = [(op,) for op in candidates(mesh, res)] + ([batch] if batch else [])
+        local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (pocket(mesh, res), batch) if ops]
         for ops in local:
             b = _apply(ops, mesh)
             if b is None:
@@ -439,18 +450,14 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 continue
             a = _apply(ops, base_state)
             proposals.append((ops, a if a is not None and a.topology_key == b.topology_key else None, b))
-        # the local ops on a converged cage: fitted lightly faired, as a converged fit is continued (at full
-        # weight the fairing rows pull its cage off the target: every op looked like a loss, example007 at 400
-        # control vertices, and the refinement stopped with half its time left)
-        fairing = CONVERGED_FAIRING if len(levels) > 1 else None
         scored = []
         for ops, a, b in proposals:
             # a split keeps the limit surface: it needs its whole fit to show what it gains
-            rounds = LEVEL_ROUNDS if len(ops) > 1 and ops is not batch else TRIAL_ROUNDS
+            rounds = TRIAL_ROUNDS if ops in local else LEVEL_ROUNDS
             if out_of_time() or b.n_faces > max_faces or not _fit.fits_in_time(b, rounds):
                 continue
             try:
-                v, c = _fit(b, rounds, fairing=fairing if ops in local else None)
+                v, c = _fit(b, rounds)
             except GsrError:
                 continue
             if not math.isfinite(c) or (c >= cost and rounds == LEVEL_ROUNDS):
@@ -467,8 +474,8 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         for *_, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
             if out_of_time():
                 break
-            if (len(ops) == 1 or ops is batch) and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the trial's fit stands
-                v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS, fairing=fairing if ops in local else None)
+            if ops in local and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the split's fit stands
+                v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS)
             if c < MIN_GAIN * cost:  # the level's fins and webs snapped before its residual aims the next ops
                 v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)
                 chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
