@@ -19,8 +19,8 @@ Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->d
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
 then the baseline's vertices and the same distances, and gsr's accuracy/complexity front (control
 vertices: mean of both directions, exact, as result.json's front records it; then ``/`` the baseline's mean of
-both directions, exact, at the vertex count QuadriFlow gives nearest it, in parentheses; ``--no-front-baselines``
-skips those).
+both directions, exact, at the vertex count QuadriFlow gives nearest it (23 face budgets from 0.5x to 1.6x scanned,
+:data:`baseline_quadremesh.BUDGETS`), in parentheses; ``--no-front-baselines`` skips those).
 
     python benchmarks/real_data.py --max-seconds 300      # -> benchmarks/results/real_data.md
 """
