@@ -6,17 +6,18 @@ import time
 
 import numpy as np
 import pytest
+import trimesh
 
 from gsr_cad.geometry.isomorphism import connectivity_hash
 from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
-from gsr_cad.ops.mesh import EdgeLoop, Extrude, Inset
+from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
-from gsr_cad.reconstruct.refine import (_after, candidates, carried, edge_rings, inset_batch, limit_cage, pocket,
-                                         refine, residual, split_all)
+from gsr_cad.reconstruct.refine import (_after, balanced_split, candidates, carried, edge_rings, inset_batch,
+                                         limit_cage, pocket, refine, residual, split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -48,6 +49,52 @@ def test_a_split_keeps_the_limit_surface_and_is_one_catmull_clark_step():
     before, after = LimitSurface.of(fitted), LimitSurface.of(placed)
     points = before.random_points(2000, seed=1)
     assert after.closest(points).distance.max() < 1e-5 * fitted.diagonal
+
+
+def _edge_aspect(mesh: PolyMesh) -> float:
+    """The largest ratio of a quad's two mean opposite-side lengths."""
+    worst = 1.0
+    for face in mesh.faces:
+        p = mesh.vertices[list(face)]
+        sides = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+        a, b = 0.5 * (sides[0] + sides[2]), 0.5 * (sides[1] + sides[3])
+        worst = max(worst, a / b, b / a)
+    return worst
+
+
+def test_a_balanced_split_cuts_the_long_rings_until_the_quads_are_about_square():
+    cube = _cube()
+    slab = cube.with_vertices(cube.vertices * [8.0, 2.0, 1.0])  # 8:2:1, as a bone's box is about 5:2:1
+    ops = balanced_split(slab, 6.0)
+    assert ops and all(isinstance(op, EdgeLoop) for op in ops)
+    built = slab
+    for op in ops:
+        built = op.apply(built)
+    assert built.n_vertices >= 48 and built.n_faces == built.n_vertices - 2  # closed, genus 0 (V - E + F = 2)
+    assert _edge_aspect(built) <= 2.0 < _edge_aspect(slab)
+    split = get_catmull_clark(slab, 2, "all").refine(slab.vertices)  # the split keeps the slab's 8:2:1 quads
+    assert _edge_aspect(split) > 4.0
+    assert balanced_split(slab, 1.0) == ()
+    assert balanced_split(_cube(), 3.0) == ()  # square already: the split does as well
+    bevelled = Bevel(0, 0.3).apply(slab)  # two pentagons: loops would end in them and grow their sides
+    assert np.any(bevelled.face_sizes != 4) and balanced_split(bevelled, 3.0) == ()
+
+
+def test_a_balanced_split_fits_an_elongated_target_closer_than_a_split_of_as_many_vertices():
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    p = sphere.vertices * [6.0, 1.5, 1.0]
+    p[:, 2] += 0.4 * np.cos(1.5 * p[:, 0])  # a wavy bar: no Catmull-Clark surface of ours
+    target = surface_target(PolyMesh.from_faces(p, sphere.faces.tolist()), "bar")
+    box = box_template(target)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=3000), box)
+    split = get_catmull_clark(box, 2, "all").refine(box.vertices)  # 98 vertices, quads as long as the bar's box
+    balanced = box
+    for op in balanced_split(box, split.n_vertices / box.n_vertices):
+        balanced = op.apply(balanced)
+    assert abs(balanced.n_vertices - split.n_vertices) <= 0.25 * split.n_vertices
+    fit = {name: problem.fit(cage, 30, min_gain=1.0, adaptive=True)[1] for name, cage in
+           (("split", split), ("balanced", balanced))}
+    assert fit["balanced"] < 0.7 * fit["split"]
 
 
 def test_the_residual_points_at_the_face_the_target_leaves():

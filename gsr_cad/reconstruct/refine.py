@@ -10,10 +10,12 @@ extrude into the mesh, :func:`pocket`) of the face over the largest inward error
 face with the largest error and a bevel (B) of the edge whose faces carry most error where the cage
 bends; insets of the faces carrying half the residual at once (:func:`inset_batch`: vertices added where
 the error is, not around whole rings); and a split of the whole cage (an edge loop through every ring: one Catmull-Clark step's
-connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`). Each
-proposal is fitted by a few rounds of the adaptive least-squares fit
+connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`); and a balanced
+split (edge loops across the rings with the longest edges until the cage has ``BALANCED_GROWTH`` times its
+vertices, :func:`balanced_split`: quads about square, where a split keeps a box's proportions on an elongated
+target). Each proposal is fitted by a few rounds of the adaptive least-squares fit
 (:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
-of the ops' limits), a split by a full fit (it starts at the same distance); the one that gains most for
+of the ops' limits), a split or a balanced split by a full fit (it starts at about the same distance); the one that gains most for
 its growth (``LEVEL_COST``) is kept and fitted further, the next one when its full fit gains too little or
 its moves cannot replay (then the cage the replayable moves reach stands, if it gains); when no trial gains,
 the closest ones get their full fit all the same. Each level's cage is then fitted on to convergence
@@ -58,6 +60,8 @@ from .result import MAX_OPS
 TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
 BATCH_SHARE = 0.5  # the batch of insets (:func:`inset_batch`) covers the faces with this share of the residual
 BATCH_FACES = 0.25  # and at most this share of the faces
+BALANCED_GROWTH = 3.0  # a balanced split (:func:`balanced_split`) grows the cage's vertices this many times
+BALANCE_RATIO = 1.5  # and is proposed when the longest ring's edges are this many times the median ring's
 LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
@@ -241,6 +245,40 @@ def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh) -> PolyMesh | None:
         offset[reach] = (adjacency @ (offset * known[:, None]))[reach] / count[reach, None]
         known |= reach
     return built.with_vertices(built.vertices + offset)
+
+
+def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[MeshOp, ...]:
+    """Edge loops, each across the ring whose edges are longest on average (the current ones), until the cage
+    has ``growth`` times its vertices: its quads made about square, as a designer adds loops along a long
+    part. A split keeps the cage's proportions: a box on an elongated target keeps quads as long as the
+    target's aspect (bone, 4:4:4 loops, 98 control vertices fitted: 3.9e-3 of the diagonal both ways; 8:3:2
+    loops, 94: 8.2e-4). Empty when the cage is not all quads (as for a split), no ring can be cut, or it is
+    balanced already (its longest ring's edges under ``BALANCE_RATIO`` times the median ring's: then the split,
+    which keeps the limit surface, does as well and the level's time goes to one full fit, not two)."""
+    ops: list[MeshOp] = []
+    if np.any(mesh.face_sizes != 4):
+        return ()  # a loop ends in a face that is not a quad and adds a side to it: ever higher n-gons
+    goal = growth * mesh.n_vertices
+    current = mesh
+    while current.n_vertices < goal:
+        conn = mesh_view(current).conn
+        P = current.vertices
+        rings, lengths = [], []
+        for e, ring, quads in distinct_rings(conn):
+            ends = [v for r in ring for v in conn.edges[r]]
+            if quads and len(set(ends)) == len(ends):
+                pairs = np.array([conn.edges[r] for r in ring], dtype=np.int64)
+                rings.append(e)
+                lengths.append(float(np.linalg.norm(P[pairs[:, 0]] - P[pairs[:, 1]], axis=1).mean()))
+        if not rings or (not ops and max(lengths) < BALANCE_RATIO * float(np.median(lengths))):
+            break  # nothing to cut, or the quads are about square already (a split does as well, and keeps the limit)
+        best = rings[int(np.argmax(lengths))]
+        try:
+            current = EdgeLoop(best).apply(current)
+        except OpError:
+            break
+        ops.append(EdgeLoop(best))
+    return tuple(ops)
 
 
 def split_all(state: PolyMesh, fitted: PolyMesh) -> tuple[tuple[MeshOp, ...], PolyMesh, PolyMesh] | None:
@@ -440,6 +478,12 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             split = None if split is None else (split[0], None, split[2])
         if split is not None:
             proposals.append(split)
+        balanced = balanced_split(mesh)
+        if balanced:
+            b = _apply(balanced, mesh)
+            if b is not None:
+                a = _apply(balanced, base_state)
+                proposals.append((balanced, a if a is not None and a.topology_key == b.topology_key else None, b))
         batch = inset_batch(mesh, res)
         local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (pocket(mesh, res), batch) if ops]
         for ops in local:
