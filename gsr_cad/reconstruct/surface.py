@@ -513,10 +513,10 @@ class SurfaceProblem:
         residuals (along the limit surface's normals, which lets the surface slide along itself and
         converges in a few rounds) plus ``POINT_WEIGHT`` times the point-to-point residuals, plus
         ``polish_damping`` (relative to the system's mean diagonal) times ``|V - V_current|^2``. A step is
-        kept sound (:func:`_sound_step`: the steps of the vertices of faces the mesh ops would refuse are shortened); when no
-        part of it is, the step is made smoother (its umbrella Laplacian over the cage penalised) and more
-        damped, tenfold each time, up to ``_SMOOTH_TRIES`` times, then the rounds stop. Rounds also stop once
-        one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure that cannot
+        kept sound (:func:`_sound_step`: the steps of the vertices of faces the mesh ops would refuse are
+        shortened); when no part of it is, the step is made smoother (its umbrella Laplacian over the cage
+        penalised) and more damped, tenfold each time, up to ``_SMOOTH_TRIES`` times, then the rounds stop.
+        Rounds also stop once one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure that cannot
         fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
         far from the target): a round that raises the cost is undone and retried ten times more damped (up
         to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
