@@ -516,10 +516,11 @@ class SurfaceProblem:
         kept sound (:func:`_sound_step`: the steps of the vertices of faces the mesh ops would refuse are
         shortened); when no part of it is, the step is made smoother (its umbrella Laplacian over the cage
         penalised) and more damped, tenfold each time, up to ``_SMOOTH_TRIES`` times, then the rounds stop.
-        Rounds also stop once one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a structure that cannot
-        fit the target stops after a few rounds, one that can keeps converging. ``adaptive`` (large cages
-        far from the target): a round that raises the cost is undone and retried ten times more damped (up
-        to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round that gains.
+        Rounds also stop once one gains less than the factor ``min_gain`` (default ``config.polish_gain``): a
+        structure that cannot fit the target stops after a few rounds, one that can keeps converging.
+        ``adaptive`` (large cages far from the target): a round that raises the cost is undone and retried ten
+        times more damped (up to ``_RETRIES`` times in a row), and the damping relaxes fourfold after each round
+        that gains.
         Adaptive fits also keep the cage fair along the surface (:func:`_tangent_fairing`), which lets the
         point-to-plane rows pull thin fins and webs of surface back onto the target without crumpling the cage;
         ``fairing`` is their first weight (default ``TANGENT_FAIRING``; a fit continuing a converged one starts at 0: restarted at full weight
