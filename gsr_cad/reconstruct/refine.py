@@ -473,9 +473,16 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         res = _fit.timed("residual", mesh, lambda: residual(problem, mesh))
         proposals = []  # (ops, what they build from base_state or None, the cage to fit)
         split = split_all(base_state, mesh)
-        if split is None:
-            split = split_all(limit_cage(mesh), mesh)
-            split = None if split is None else (split[0], None, split[2])
+        smooth = mesh
+        for _ in range(SMOOTHINGS if split is None else 0):
+            # the loops on ever smoother cages, as :func:`_after` will place them (example012, 162 control
+            # vertices: a loop folded a face on the base's geometry and on the first limit cage; no split was
+            # proposed, no other op gained, and the refinement stopped with a third of its time left)
+            smooth = limit_cage(smooth)
+            split = split_all(smooth, mesh)
+            if split is not None:
+                split = (split[0], None, split[2])
+                break
         if split is not None:
             proposals.append(split)
         balanced = balanced_split(mesh)
