@@ -341,6 +341,29 @@ def test_ops_that_fold_a_face_on_the_fitted_cage_follow_moves_to_a_smoother_one(
     assert connectivity_hash(built) == connectivity_hash(loop.apply(limit_cage(skewed)))
 
 
+def test_a_split_that_folds_a_face_on_the_cage_is_built_on_a_smoother_one():
+    """The split's loops depend on the connectivity only and its vertices on the fitted cage only: where a loop
+    folds a face on the fitted cage, the split built on one of its limit cages is the same proposal (the same
+    loops, the same vertices: the fitted cage's Catmull-Clark step)."""
+    _, _, skewed, _ = _skewed_loop()
+    assert split_all(skewed, skewed) is None
+    smooth, built = skewed, None
+    for _ in range(3):
+        smooth = limit_cage(smooth)
+        built = split_all(smooth, skewed)
+        if built is not None:
+            break
+    assert built is not None
+    ops, _, placed = built
+    cube = _cube()
+    reference = get_catmull_clark(cube, 1, "all").refine(cube.vertices)  # the same connectivity, unskewed
+    ref_ops, _, ref_placed = split_all(reference, skewed)
+    assert ops == ref_ops
+    assert np.allclose(placed.vertices, ref_placed.vertices)
+    step = get_catmull_clark(skewed, 1, "all").refine(skewed.vertices)
+    assert connectivity_hash(placed) == connectivity_hash(step)
+
+
 def test_an_op_that_folds_a_face_is_carried_onto_the_fitted_cage():
     _, _, skewed, loop = _skewed_loop()
     out = carried((loop,), skewed)
