@@ -38,6 +38,11 @@ def _blob(seed: int) -> PolyMesh:
     return fine.with_vertices(fine.vertices * (1.0 + 0.25 * rng.random((fine.n_vertices, 1))))
 
 
+_SMALL_RUN = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+                  generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
+"""A search of two small generations: the runs below test what the refinement does after it."""
+
+
 def test_a_split_keeps_the_limit_surface_and_is_one_catmull_clark_step():
     cube = _cube()
     rng = np.random.default_rng(3)
@@ -167,9 +172,7 @@ def test_the_limit_cage_lies_on_the_limit_surface():
 
 def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_distance_stops_it():
     target = surface_target(limit_mesh(_blob(2), 3), "blob")
-    small = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-                 generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
-    result = reconstruct_surface(target, seed=1, max_seconds=120, refine_until=5e-4, **small)
+    result = reconstruct_surface(target, seed=1, max_seconds=120, refine_until=5e-4, **_SMALL_RUN)
     m = result.metrics
     assert m["refinement"] and m["refinement"][-1]["distance"] < m["refinement"][0]["distance"]
     points = m["front"]
@@ -180,7 +183,7 @@ def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_dist
     assert levels & {p["vertices"] for p in points} == levels or len(points) >= 2
     assert m["n_control_vertices"] == m["refinement"][-1]["vertices"]
     goal = m["refinement"][1]["distance"] * 1.001
-    picked = reconstruct_surface(target, seed=1, max_seconds=120, max_distance=goal, **small)
+    picked = reconstruct_surface(target, seed=1, max_seconds=120, max_distance=goal, **_SMALL_RUN)
     assert picked.metrics["tolerance_met"] is True
     assert picked.metrics["n_control_vertices"] <= m["refinement"][1]["vertices"]
 
@@ -257,6 +260,31 @@ def test_a_fit_past_its_deadline_runs_no_round():
     assert cost == problem.fit(cube, 0)[1] > problem.fit(cube, 5, adaptive=True)[1]
 
 
+@pytest.mark.parametrize("seed", [2, 3])
+def test_a_faired_fit_of_a_loop_on_a_converged_cage_does_not_end_where_it_started(seed):
+    """The fairing rows hold a converged cage where it is: a proposal's faired fit used to undo every round and
+    measure the proposal as it came (here one loop of each seed's three), behind the converged cage. The first
+    step that raises the cost is redone without them; each loop then gains as its unfaired fit does."""
+    cube = _cube()
+    fine = get_catmull_clark(cube, 2, "all").refine(cube.vertices)
+    rng = np.random.default_rng(seed)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.3 * rng.random((fine.n_vertices, 1))))
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    cage = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=3000), cage)
+    v, _ = problem.fit(cage, 40, min_gain=1.0, adaptive=True, stiffness=0.1)
+    v, _ = problem.fit(cage.with_vertices(v), 30, min_gain=1.0, adaptive=True, stiffness=0.1, fairing=0.0)
+    converged = cage.with_vertices(v)
+    loops = [op for op in candidates(converged, residual(problem, converged)) if isinstance(op, EdgeLoop)][:3]
+    assert len(loops) == 3
+    for op in loops:
+        grown = op.apply(converged)
+        as_is = problem.fit(grown, 0)[1]
+        faired = problem.fit(grown, 3, min_gain=1.0, adaptive=True, stiffness=0.1)[1]
+        plain = problem.fit(grown, 3, min_gain=1.0, adaptive=True, stiffness=0.1, fairing=0.0)[1]
+        assert faired < 0.8 * as_is and plain < 0.8 * as_is
+
+
 def test_when_no_trial_gains_the_closest_proposals_get_their_full_fit(monkeypatch):
     """A proposal's first rounds start behind a converged cage; with no trial rounds at all none gains, and the
     refinement still grows (before, it stopped at its first cage)."""
@@ -288,14 +316,39 @@ def test_a_winner_whose_refinement_stalls_leaves_the_time_to_the_template(monkey
 
     monkeypatch.setattr(surface_module, "refine", stalled_winner)
     target = surface_target(limit_mesh(_blob(3), 3), "blob")
-    small = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-                 generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
-    result = reconstruct_surface(target, seed=1, max_seconds=90, refine_until=1e-4, **small)
+    result = reconstruct_surface(target, seed=1, max_seconds=90, refine_until=1e-4, **_SMALL_RUN)
     rows = result.metrics["refinement"]
     assert calls[0] > 0 and calls[1] == 0  # the winner's ops, then the template's none
     assert rows[0]["vertices"] == 8 and rows[-1]["vertices"] > 8
     assert result.metrics["n_control_vertices"] == rows[-1]["vertices"]
 
+
+
+def test_a_winner_that_meets_the_goal_early_leaves_the_time_to_a_simpler_cage_from_the_template(monkeypatch):
+    """The goal met with time left: the template grows too, no larger than the winner's cage, and the simpler
+    cage that meets the goal stands. Here the winner's refinement is made to go
+    past the goal (to a tenth of it, within 100 faces), where the template's one split meets it."""
+    import gsr_cad.reconstruct.surface as surface_module
+
+    real = surface_module.refine
+    calls = []
+
+    def past_the_goal(problem, genome, goal, deadline, max_faces, *args, **kwargs):
+        calls.append((len(genome), max_faces))
+        if genome:
+            goal, max_faces = 0.1 * goal, min(max_faces, 100)
+        out = real(problem, genome, goal, deadline, max_faces, *args, **kwargs)
+        ends.append(out[1][-1].control)
+        return out
+
+    ends = []
+    monkeypatch.setattr(surface_module, "refine", past_the_goal)
+    target = surface_target(limit_mesh(_blob(3), 3), "blob")
+    result = reconstruct_surface(target, seed=1, max_seconds=120, refine_until=1e-3, **_SMALL_RUN)
+    rows = result.metrics["refinement"]
+    assert len(calls) == 2 and calls[0][0] > 0 and calls[1] == (0, ends[0].n_faces - 1)
+    assert rows[0]["vertices"] == 8 and rows[-1]["distance"] <= 1e-3
+    assert result.metrics["n_control_vertices"] == rows[-1]["vertices"] == ends[1].n_vertices < ends[0].n_vertices
 
 
 def test_the_residual_points_at_the_face_over_a_pocket_and_a_pocket_is_proposed():

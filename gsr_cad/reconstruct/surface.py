@@ -119,6 +119,9 @@ CLOUD_POINTS_PER_FACE = 8  # data points a refined cage needs per face on a poin
 RESTART_SHARE = 0.5
 """When the refinement of the searched winner stops short of its goal with more than this share of its time left,
 the template is refined too (:func:`_refined`)."""
+REACHED_SHARE = 0.25
+"""When it meets its goal with more than this share of its time left, the template is refined too, to a simpler
+cage that meets it (:func:`_refined`)."""
 
 
 def box_template(target: SurfaceTarget, fit: str = "box") -> PolyMesh:
@@ -524,7 +527,10 @@ class SurfaceProblem:
         Adaptive fits also keep the cage fair along the surface (:func:`_tangent_fairing`), which lets the
         point-to-plane rows pull thin fins and webs of surface back onto the target without crumpling the cage;
         ``fairing`` is their first weight (default ``TANGENT_FAIRING``; a fit continuing a converged one starts at 0: restarted at full weight
-        they outweigh its small residual, every round is undone, and the fit stalls).
+        they outweigh its small residual, every round is undone, and the fit stalls). When the first step of a
+        faired fit raises the cost, the rows are dropped and the step redone without them (not counted as a
+        round): a proposal on a converged cage (example012, 642 control vertices: an edge loop's three trial
+        rounds measured 3.0e-3 of the diagonal faired, the cage as it came; 2.94e-3 without the rows).
         ``deadline`` (a ``time.perf_counter()`` value): no round starts that would end after it (each taking as
         long as the rounds so far). ``self.fit_rounds``: the rounds the last fit started (for time predictions).
         """
@@ -540,41 +546,53 @@ class SurfaceProblem:
         lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
         held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+        plain: sp.csc_matrix | None = None  # the saved round's system without the fairing rows
+        gained = False  # a step of this fit has lowered the cost
         smooth = lap = None
         fairing = TANGENT_FAIRING if fairing is None else fairing
         began = time.perf_counter()
         self.fit_rounds = 0
-        for r in range(max(rounds, 0) + 1):
+        redone = 0  # 1 once a round was redone without the fairing rows (it does not count as a round)
+        for r in range(max(rounds, 0) + 2):
             surface = LimitSurface(layout, V)
             pairs, cost = self._pairs(surface, hint)
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
             # no round starts that would end after the deadline (a round takes about as long as the last)
-            if r == rounds or cost == 0.0 or (deadline is not None and time.perf_counter()
+            if r == rounds + redone or cost == 0.0 or (deadline is not None and time.perf_counter()
                                               + (time.perf_counter() - began) / max(r, 1) >= deadline):
                 break
             self.fit_rounds = r + 1
             if adaptive and saved is not None and cost >= saved[3]:
-                fails += 1  # the step made it worse: back to where it started, damped more
-                if fails > _RETRIES:
-                    break
-                rel *= 10.0
-                stiff = min(stiff * 4.0, max(stiffness, _STIFF_END))
+                if plain is not None and not gained:
+                    # the fairing rows outweigh the residual of a cage already near its fit (a proposal on a
+                    # converged cage: every round was undone and the trial measured the cage as it came); the
+                    # round is redone without them, as damped as it was
+                    saved, plain, fairing, redone = (saved[0], plain, saved[2], saved[3]), None, 0.0, 1
+                else:
+                    fails += 1  # the step made it worse: back to where it started, damped more
+                    if fails > _RETRIES:
+                        break
+                    rel *= 10.0
+                    stiff = min(stiff * 4.0, max(stiffness, _STIFF_END))
                 V, H, g, _ = saved
             else:
                 if cost >= min_gain * last:
                     break
+                gained = gained or saved is not None
                 last, fails = cost, 0
                 if adaptive and saved is not None:
                     rel = max(rel / 4.0, self.config.polish_damping)
                     stiff = max(stiff * _STIFF_RELAX, _STIFF_END)
                 H, g = self._system(surface, pairs)
+                plain = None
                 if adaptive and fairing > 0.0:
                     if lap is None:
                         lap = _umbrella(mesh)
                     fair = _tangent_fairing(mesh, V, lap, float(H.diagonal().sum()), fairing)
                     fairing = fairing * FAIRING_DECAY if fairing * FAIRING_DECAY >= FAIRING_END else 0.0
+                    plain = H.tocsc()
                     H = H + (fair.T @ fair)
                 H = H.tocsc() if adaptive else H.toarray()
                 saved = (V, H, g, cost)
@@ -1628,7 +1646,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
     measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
-    the winner is within ``goal`` already and no tolerance was asked."""
+    the winner is within ``goal`` already and no tolerance was asked. With time left (``RESTART_SHARE`` when the
+    winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -1681,15 +1700,23 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     started = time.perf_counter()
     final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail)
     quads = bool(np.all(grower.template.face_sizes == 4))
-    if (levels[-1].cost > goal and genome and deadline is not None and quads
-            and 4 * levels[-1].control.n_faces <= faces  # stalled, not stopped by the face budget
-            and deadline - time.perf_counter() > RESTART_SHARE * (deadline - started)
-            and not (should_stop is not None and should_stop())):
+    left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
+    last = levels[-1]
+    free = bool(genome) and quads and not (should_stop is not None and should_stop())
+    if (free and last.cost > goal and 4 * last.control.n_faces <= faces  # stalled, not by the face budget
+            and left > RESTART_SHARE):
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
         # and the closer of the two stands (airplane: the search's bevelled cube, 10 vertices, two pentagons, no
         # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
         again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail)
-        if more[-1].cost < levels[-1].cost:
+        if more[-1].cost < last.cost:
+            final, levels = again, more
+    elif free and last.cost <= goal and left > REACHED_SHARE and last.control.n_faces > grower.template.n_faces:
+        # the goal met early: the template grows too, up to a cage simpler than the winner's, and the simpler
+        # of the two that meet the goal stands; both paths are points of the front (bone: the search's 24-vertex
+        # winner reached 2e-3 of the diagonal at 258 vertices, the placed cube at 114)
+        again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail)
+        if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
             final, levels = again, more
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
