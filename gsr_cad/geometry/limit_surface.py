@@ -199,17 +199,23 @@ def _unit(a: np.ndarray) -> np.ndarray:
     return np.divide(a, n, out=np.zeros_like(a), where=n > 0)
 
 
-def _combine(a: np.ndarray, b: np.ndarray, poles: np.ndarray) -> np.ndarray:
-    """``sum_ij a[q, i] b[q, j] poles[q, 4 i + j]``."""
-    return np.einsum("qk,qkc->qc", (a[:, :, None] * b[:, None, :]).reshape(-1, 16), poles)
+def _tensor(rows: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``out[q, m, c, k] = sum_ij a[q, m, i] b[q, j, k] P[q, i, j, c]`` for bicubic patches with poles ``P``
+    given as ``rows`` ``(q, 12, 4)`` (``rows[q, 3 i + c, j] = P[q, i, j, c]``, as ``LimitSurface._pole_rows``): the
+    patches contracted with ``m`` bases along u and ``k`` along v, as two stacked matrix products (four times
+    faster than an einsum per pair of bases, of which the foot points' Newton steps need six)."""
+    q, k = len(rows), b.shape[2]
+    return (a @ (rows @ b).reshape(q, 4, 3 * k)).reshape(q, a.shape[1], 3, k)
 
 
-def _evaluate(poles: np.ndarray, u: np.ndarray, v: np.ndarray, derivatives: bool):
-    """Points of patches with poles ``(q, 16, 3)`` at ``(u[i], v[i])`` (and the first derivatives)."""
-    bu, bv = bspline_basis(u), bspline_basis(v)
+def _evaluate(rows: np.ndarray, u: np.ndarray, v: np.ndarray, derivatives: bool):
+    """Points of patches with poles ``rows`` (as :func:`_tensor` takes them) at ``(u[i], v[i])`` (and the
+    first derivatives)."""
     if not derivatives:
-        return _combine(bu, bv, poles)
-    return _combine(bu, bv, poles), _combine(bspline_basis(u, 1), bv, poles), _combine(bu, bspline_basis(v, 1), poles)
+        return _tensor(rows, bspline_basis(u)[:, None, :], bspline_basis(v)[:, :, None])[:, 0, :, 0]
+    out = _tensor(rows, np.stack([bspline_basis(u), bspline_basis(u, 1)], axis=1),
+                  np.stack([bspline_basis(v), bspline_basis(v, 1)], axis=2))
+    return out[:, 0, :, 0], out[:, 1, :, 0], out[:, 0, :, 1]
 
 
 def _grid_params(m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -227,6 +233,7 @@ class LimitSurface:
         self.layout = layout
         self.control = v
         self.poles = (layout.poles @ v).reshape(-1, 4, 4, 3)
+        self._pole_rows = np.ascontiguousarray(self.poles.transpose(0, 1, 3, 2)).reshape(-1, 12, 4)
         self.corner_points = layout.corners @ v
         self._groups: list | None = None
 
@@ -237,7 +244,7 @@ class LimitSurface:
     # --- evaluation --------------------------------------------------------------------------------------
     def evaluate(self, patch: np.ndarray, u: np.ndarray, v: np.ndarray, derivatives: bool = False):
         """Points ``(q, 3)`` at ``(patch[i], u[i], v[i])``; with ``derivatives`` also ``S_u`` and ``S_v``."""
-        return _evaluate(self.poles[patch].reshape(-1, 16, 3), u, v, derivatives)
+        return _evaluate(self._pole_rows[patch], u, v, derivatives)
 
     def _search(self) -> list[tuple[cKDTree, np.ndarray, np.ndarray, np.ndarray]]:
         """Per patch depth: a KD-tree of grid samples of its patches (spaced alike at every depth), their
@@ -275,18 +282,17 @@ class LimitSurface:
         once their step is below 1e-12 in parameter)."""
         u, v = u.astype(np.float64).copy(), v.astype(np.float64).copy()
         active = np.arange(len(u))
-        poles = self.poles[patch].reshape(-1, 16, 3)
+        poles = self._pole_rows[patch]
         for _ in range(_NEWTON):
             if not active.size:
                 break
             ua, va = u[active], v[active]
             g = poles[active]
-            s, su, sv = _evaluate(g, ua, va, True)
+            d = _tensor(g, np.stack([bspline_basis(ua, k) for k in range(3)], axis=1),
+                        np.stack([bspline_basis(va, k) for k in range(3)], axis=2))
+            s, su, sv = d[:, 0, :, 0], d[:, 1, :, 0], d[:, 0, :, 1]
+            suu, suv, svv = d[:, 2, :, 0], d[:, 1, :, 1], d[:, 0, :, 2]
             r = x[active] - s
-            bu, bv, du1, dv1 = bspline_basis(ua), bspline_basis(va), bspline_basis(ua, 1), bspline_basis(va, 1)
-            suu = _combine(bspline_basis(ua, 2), bv, g)
-            suv = _combine(du1, dv1, g)
-            svv = _combine(bu, bspline_basis(va, 2), g)
             a = (su * su).sum(-1) - (r * suu).sum(-1)
             b = (su * sv).sum(-1) - (r * suv).sum(-1)
             c = (sv * sv).sum(-1) - (r * svv).sum(-1)
