@@ -4,6 +4,7 @@ distributions they promise (binomial / chi-square bounds) and as hypothesis prop
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -197,6 +198,13 @@ def test_roulette_weights_are_a_distribution_favouring_lower_costs(costs):
         for j in range(len(c)):
             if c[i] < c[j]:
                 assert p[i] >= p[j]
+
+
+def test_roulette_weights_of_costs_near_the_smallest_float_favour_them_without_overflow():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p = roulette_weights([1e-308, 2e-308, 1.0, float("nan")])
+    np.testing.assert_allclose(p, [2 / 3, 1 / 3, 0.0, 0.0], atol=1e-300)
 
 
 # ---------------------------------------------------------------- termination

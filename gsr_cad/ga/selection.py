@@ -19,15 +19,15 @@ def roulette_weights(costs: Sequence[float] | np.ndarray) -> np.ndarray:
     if n == 0:
         raise ValueError("roulette selection needs at least one individual")
     usable = np.isfinite(c) & (c >= 0)
-    with np.errstate(divide="ignore", over="ignore"):
-        w = np.where(usable, 1.0 / np.where(usable, c, 1.0), 0.0)
-    certain = usable & ~np.isfinite(w)
+    if not usable.any():
+        return np.full(n, 1.0 / n)
+    certain = usable & (c < 1.0 / np.finfo(float).max)  # 0, or so small that 1 / cost overflows
     if certain.any():
         w = certain.astype(float)
-    total = w.sum()
-    if not total > 0 or not np.isfinite(total):
-        return np.full(n, 1.0 / n)
-    return w / total
+    else:  # 1 / cost scaled by the lowest cost: each at most 1, and no sum of them overflows
+        w = np.zeros(n)
+        w[usable] = c[usable].min() / c[usable]
+    return w / w.sum()
 
 
 def roulette_select(costs: Sequence[float] | np.ndarray, k: int, rng: np.random.Generator,
