@@ -16,8 +16,8 @@ from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
-from gsr_cad.reconstruct.refine import (_after, balanced_split, candidates, carried, edge_rings, inset_batch,
-                                         limit_cage, pocket, refine, residual, split_all)
+from gsr_cad.reconstruct.refine import (_after, _prefix_sizes, balanced_split, candidates, carried, edge_rings,
+                                         fill_counts, inset_batch, limit_cage, pocket, refine, residual, split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -157,11 +157,42 @@ def test_refinement_grows_the_cage_until_it_fits_and_replays(seed):
         assert replayed.n_vertices == n
         assert np.abs(replayed.vertices - level.control.vertices).max() <= 1e-9 * target.diagonal
     assert seen[len(levels) - 1][2] == genome
-    # then earlier levels' cages fitted on (front points): each replays, and is closer than its level was
+    # then earlier levels' cages fitted on, and cages between levels from a prefix of a level's ops (front
+    # points): each replays; a level's is closer than the level was, one between levels closer than the level
+    # below it
+    sizes = [lv.control.n_vertices for lv in levels]
+    between = 0
     for n, cost, history in seen[len(levels):]:
         assert problem.control_mesh(history).n_vertices == n
         assert problem.fit(problem.control_mesh(history), 0)[1] == pytest.approx(cost, rel=1e-9)
-        assert cost < min(lv.cost for lv in levels if lv.control.n_vertices == n)
+        if n in sizes:
+            assert cost < min(lv.cost for lv in levels if lv.control.n_vertices == n)
+        else:
+            below = max(k for k, size in enumerate(sizes) if size < n)
+            assert n < sizes[below + 1] and cost < levels[below].cost
+            between += 1
+    assert between >= 1  # the split of the 8-vertex cube to 26 has prefixes of 12 and 18 vertices
+
+
+def test_fill_counts_space_the_front_points_between_two_levels():
+    sizes = [12, 16, 20, 26, 32, 40, 48]
+    picked = fill_counts(sizes, 10, 50, 1.25)
+    kept = [sizes[k] for k in picked]
+    assert kept == [16, 20, 26, 40]  # each >= 1.25 x the last (10 first), none above 50 / 1.25
+    assert fill_counts(sizes, 10, 14, 1.25) == []
+    assert fill_counts([], 10, 50) == []
+
+
+def test_prefix_sizes_follow_the_ops_on_the_cube():
+    cube = _cube()
+    ring = EdgeLoop(0)
+    once = ring.apply(cube)
+    sizes = _prefix_sizes((ring, EdgeLoop(0)), cube)
+    assert sizes == [once.n_vertices, EdgeLoop(0).apply(once).n_vertices]
+    assert sizes[0] == 12
+    with pytest.raises(OpError):
+        EdgeLoop(10_000).apply(cube)
+    assert _prefix_sizes((EdgeLoop(10_000),), cube) == []
 
 
 def test_the_limit_cage_lies_on_the_limit_surface():

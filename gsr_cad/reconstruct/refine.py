@@ -35,7 +35,8 @@ search's ops), where they apply cleanly, followed by the moves of the final fit 
 straight path would fold a face); when those moves cannot replay, a level's ops follow the previous
 level's moves instead (after moves onto a smoother cage, :func:`limit_cage` and its own, where the fitted
 quads are too skewed for them, :func:`_after`). A proposal that folds a face on the fitted cage is built on such a
-smoother cage and carried back onto the fitted one (:func:`carried`). Every level is a point of the accuracy/complexity front.
+smoother cage and carried back onto the fitted one (:func:`carried`). Every level is a point of the accuracy/complexity front,
+and so, in the time left, are prefixes of the levels that added several ops at once (:func:`_fill_front`).
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ LEVEL_ROUNDS = 12  # rounds the kept candidate gets
 LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
 FINISH_ROUNDS = 60  # most rounds the last cage's fit gets after the levels (:func:`_finish`)
+FILL_STEP = 1.25  # the front's points between levels (:func:`_fill_front`) grow by at least this factor
 FRONT_TAIL = 1.5  # the front's cages are finished while this many times the final cage's tail is left
 SNAP_PASSES = 3  # passes of snapping far control vertices onto the target and refitting (:func:`snapped`)
 SNAP_FACTOR = 2.0
@@ -430,13 +432,16 @@ class _Fitter:
 def refine(problem, genome: tuple, goal: float, deadline: float | None, max_faces: int,
            record: Callable[[PolyMesh, float, tuple], None] | None = None,
            should_stop: Callable[[], bool] | None = None,
-           tail: Callable[[int], float] | None = None) -> tuple[tuple, list[Level]]:
+           tail: Callable[[int], float] | None = None,
+           deferred: list[tuple[list[Level], Callable[[], None]]] | None = None) -> tuple[tuple, list[Level]]:
     """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
     docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
     largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
     to it. ``tail(vertices)``: the seconds the caller needs after the refinement for a cage that size (kept
     free before the deadline; each fit, residual and commit is timed and the next predicted from them,
-    :class:`Timing`). Returns the refined genome and the levels.
+    :class:`Timing`). Returns the refined genome and the levels. The front's points between levels
+    (:func:`_fill_front`) are filled in the time left, or, with ``deferred``, appended there as
+    ``(levels, a call that fills them)`` for the caller to run after its other refinements.
 
     The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
     template's own geometry, where they apply cleanly) followed by one move per control vertex to the
@@ -573,7 +578,94 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             done = _finish(problem, front_fit, out_of_time, stage[3], stage[4], *stage[:3])
             if done is not None:
                 record(done[3], done[4], done[2])
+
+        def fill() -> None:
+            _fill_front(problem, front_fit, out_of_time, stages, levels, record)
+
+        if deferred is None:
+            fill()
+        else:
+            deferred.append((levels, fill))
     return full, levels
+
+
+def fill_counts(sizes: list[int], low: int, high: int, step: float = FILL_STEP) -> list[int]:
+    """Which prefixes of a level's ops fill the front's gap between ``low`` and ``high`` control vertices:
+    indices into ``sizes`` (the cage's vertices after each prefix, growing), each at least ``step`` times the
+    last point kept (``low`` first) and at most ``high / step``."""
+    out, last = [], low
+    for k, n in enumerate(sizes):
+        if n >= step * last and n * step <= high:
+            out.append(k)
+            last = n
+    return out
+
+
+def _prefix_sizes(ops: tuple, mesh: PolyMesh) -> list[int]:
+    """The control vertices after each op of ``ops`` on ``mesh``, or on the first of its smoother cages
+    (:func:`limit_cage`) where they all apply (a converged cage's skewed quads fold under a loop); empty when
+    they apply on none."""
+    state = mesh
+    for _ in range(SMOOTHINGS + 1):
+        sizes, built = [], state
+        for op in ops:
+            built = _apply((op,), built)
+            if built is None:
+                break
+            sizes.append(built.n_vertices)
+        else:
+            return sizes
+        state = limit_cage(state)
+    return []
+
+
+def _fill_front(problem, _fit, out_of_time, stages: list[tuple], levels: list[Level],
+                record: Callable[[PolyMesh, float, tuple], None]) -> None:
+    """Points of the front between levels that grew the cage by several ops at once (a split, a balanced split,
+    a batch of insets): a prefix of the level's ops, fitted, committed and finished as a level, in the time left
+    (the smallest gaps first). A user picking a simpler cage (``--max-distance``) then gets a cage of about that
+    size fitted in full, where the front held only the search's cages (bone: 30 and 114 control vertices from the
+    refinement, the search's 66 at 8.5e-3 of the diagonal).
+
+    Each prefix is fitted from two starts, the closer kept: the previous level's converged cage with the ops
+    applied, and the level's own converged cage without its later ops (the ops only append vertices, so the
+    prefix's vertices are the first ones of the level's cage). The second is ahead where the previous level's
+    fit is a local minimum that the prefix's loops do not leave (bone, 30 -> 114 vertices by seven loops, their
+    prefixes fitted both ways: 54 vertices 1.05e-2 and 7.6e-3 of the diagonal, 90 vertices 8.2e-3 and 3.8e-3;
+    each next larger filled cage as the start instead did no better)."""
+    for stage, level in zip(stages, levels[1:]):
+        base, base_state, full, mesh, cost = stage
+        ops = level.ops
+        if len(ops) < 2 or level.control.n_vertices < FILL_STEP ** 2 * mesh.n_vertices:
+            continue
+        sizes = _prefix_sizes(ops[:-1], mesh)
+        for k in fill_counts(sizes, mesh.n_vertices, level.control.n_vertices):
+            part = ops[:k + 1]
+            if out_of_time():
+                return
+            b = _apply(part, mesh)
+            if b is None:
+                b = carried(part, mesh)
+            if b is None or not _fit.fits_in_time(b, 2 * LEVEL_ROUNDS):
+                continue
+            tries = []
+            for start in (b, b.with_vertices(level.control.vertices[:b.n_vertices])):
+                try:
+                    tries.append(_fit(start, LEVEL_ROUNDS, fairing=0.0))
+                except GsrError:
+                    continue
+            if not tries:
+                continue
+            v, c = min(tries, key=lambda t: t[1])
+            if not c < MIN_GAIN * cost:
+                continue
+            chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c,
+                                    cost)
+            if chosen is None or len(chosen[3]) > MAX_OPS:
+                continue
+            done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4])
+            cage, c, genome = (done[3], done[4], done[2]) if done is not None else (chosen[4], chosen[5], chosen[3])
+            record(cage, c, genome)
 
 
 def _finish(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,
@@ -737,14 +829,21 @@ def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tup
             continue
         if not c < MIN_GAIN * cost:
             continue
-        v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)
-        a = _apply(ops, base_state)
-        a = a if a is not None and a.topology_key == b.topology_key else None
-        chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
-                                                         b.with_vertices(v), c, cost, _fit.late(b), via))
+        chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, ops, b.with_vertices(v), c, cost)
         if chosen is not None:
             return chosen
     return None
+
+
+def _snapped_level(problem, _fit, out_of_time, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
+                   fitted: PolyMesh, c: float, cost: float) -> tuple | None:
+    """The cage ``ops`` build from the last level, fitted (``fitted``, at ``c``), snapped (:data:`LEVEL_SNAPS`
+    passes) and committed as a level (:func:`_commit`; the ops replay on ``base_state`` where they apply)."""
+    v, c, via = snapped(problem, _fit, out_of_time, fitted, c, LEVEL_SNAPS, LEVEL_ROUNDS)
+    a = _apply(ops, base_state)
+    a = a if a is not None and a.topology_key == fitted.topology_key else None
+    return _fit.timed("commit", fitted, lambda: _commit(problem, base, base_state, full, ops, a,
+                                                        fitted.with_vertices(v), c, cost, _fit.late(fitted), via))
 
 
 def limit_cage(mesh: PolyMesh) -> PolyMesh:

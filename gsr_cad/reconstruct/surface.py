@@ -1720,7 +1720,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         return Growth(meets[0][2], meets[0][1], front(found), [])
     faces = refine_face_limit(target, config.refine_max_faces)
     started = time.perf_counter()
-    final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail)
+    fills: list[tuple[list, Callable[[], None]]] = []  # the front's points between levels, after both paths
+    final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail, fills)
     quads = bool(np.all(grower.template.face_sizes == 4))
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
     last = levels[-1]
@@ -1730,16 +1731,18 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
         # and the closer of the two stands (airplane: the search's bevelled cube, 10 vertices, two pentagons, no
         # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
-        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail)
+        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail, fills)
         if more[-1].cost < last.cost:
             final, levels = again, more
     elif free and last.cost <= goal and left > REACHED_SHARE and last.control.n_faces > grower.template.n_faces:
         # the goal met early: the template grows too, up to a cage simpler than the winner's, and the simpler
         # of the two that meet the goal stands; both paths are points of the front (bone: the search's 24-vertex
         # winner reached 2e-3 of the diagonal at 258 vertices, the placed cube at 114)
-        again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail)
+        again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail, fills)
         if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
             final, levels = again, more
+    for _, fill in sorted(fills, key=lambda job: job[0] is not levels):  # the kept path's first
+        fill()
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
