@@ -68,6 +68,7 @@ LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
 FINISH_ROUNDS = 60  # most rounds the last cage's fit gets after the levels (:func:`_finish`)
 FILL_STEP = 1.25  # the front's points between levels (:func:`_fill_front`) grow by at least this factor
+FILL_SHARE = 0.5  # and are filled for at most this share of the refinement's own seconds (no fill starts after)
 FRONT_TAIL = 1.5  # the front's cages are finished while this many times the final cage's tail is left
 SNAP_PASSES = 3  # passes of snapping far control vertices onto the target and refitting (:func:`snapped`)
 SNAP_FACTOR = 2.0
@@ -433,15 +434,16 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
            record: Callable[[PolyMesh, float, tuple], None] | None = None,
            should_stop: Callable[[], bool] | None = None,
            tail: Callable[[int], float] | None = None,
-           deferred: list[tuple[list[Level], Callable[[], None]]] | None = None) -> tuple[tuple, list[Level]]:
+           deferred: list[tuple[list[Level], Callable[[float], None]]] | None = None) -> tuple[tuple, list[Level]]:
     """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
     docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
     largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
     to it. ``tail(vertices)``: the seconds the caller needs after the refinement for a cage that size (kept
     free before the deadline; each fit, residual and commit is timed and the next predicted from them,
     :class:`Timing`). Returns the refined genome and the levels. The front's points between levels
-    (:func:`_fill_front`) are filled in the time left, or, with ``deferred``, appended there as
-    ``(levels, a call that fills them)`` for the caller to run after its other refinements.
+    (:func:`_fill_front`) are filled in the time left, for at most ``FILL_SHARE`` of the refinement's seconds, or,
+    with ``deferred``, appended there as ``(levels, a call that fills them for at most the seconds given)`` for
+    the caller to run after its other refinements.
 
     The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
     template's own geometry, where they apply cleanly) followed by one move per control vertex to the
@@ -579,11 +581,13 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if done is not None:
                 record(done[3], done[4], done[2])
 
-        def fill() -> None:
-            _fill_front(problem, front_fit, out_of_time, stages, levels, record)
+        def fill(seconds: float) -> None:
+            until = time.perf_counter() + seconds
+            _fill_front(problem, front_fit, lambda: out_of_time() or time.perf_counter() >= until, stages, levels,
+                        record)
 
         if deferred is None:
-            fill()
+            fill(FILL_SHARE * (time.perf_counter() - started))
         else:
             deferred.append((levels, fill))
     return full, levels
