@@ -101,10 +101,14 @@ def test_same_seed_same_result_serial_or_process_pool():
     def costs(result):
         return [(h["best_fitness"], h["mean_fitness"]) for h in result.history]
 
-    assert a.genome == b.genome and costs(a) == costs(b)
+    def front(result):  # the front's cages between the refinement's levels too (bounded by a count, not seconds)
+        return [(p["vertices"], p["distance"]) for p in result.metrics["front"]]
+
+    assert a.genome == b.genome and costs(a) == costs(b) and front(a) == front(b)
     with ProcessPoolEvaluator(max_workers=2) as pool:
         c = reconstruct_surface(target, seed=7, evaluator=pool, **small)
     assert c.genome == a.genome and costs(c) == costs(a) and c.metrics["fitness"] == a.metrics["fitness"]
+    assert front(c) == front(a)
 
 
 def test_ctrl_c_keeps_the_best_so_far():

@@ -125,7 +125,7 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
                   "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
                   "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
-                  "refine_seconds": (0, 2_592_000), "refine_stall": (0, 1_000_000)}
+                  "refine_seconds": (0, 2_592_000), "refine_fill": (0, 10), "refine_stall": (0, 1_000_000)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
 
 
@@ -384,6 +384,11 @@ class SurfaceConfig:
     refine_seconds: float = _field(
         300.0,
         "Most seconds the refinement may take when no --max-seconds is given; 0: no limit.")
+    refine_fill: float = _field(
+        0.5,
+        "After the refinement, the front's cages between its levels (a prefix of a level's loops or insets, fitted "
+        "in full, for --max-distance to pick from) get at most this share of its fit rounds (counted, so a seed "
+        "repeats them); 0: none.")
     population: int = _field(100, "Individuals kept from one generation to the next.")
     initial_population: int = _field(100, "Random genomes drawn in generation 0.")
     min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")

@@ -19,7 +19,9 @@ of the ops' limits), a split or a balanced split by a full fit (it starts at abo
 its growth (``LEVEL_COST``) is kept and fitted further, the next one when its full fit gains too little or
 its moves cannot replay (then the cage the replayable moves reach stands, if it gains); when no trial gains,
 the closest ones get their full fit all the same. Each level's cage is then fitted on to convergence
-(:func:`_finish`) before the next grows from it: its residual aims the next ops at what the structure cannot
+(:func:`_finish`) before the next grows from it; a level of several ops is checked against the prefix of them
+nearest the middle of its growth, fitted alike, and the closer of the two is the level (:func:`_middle`: a split
+can converge to a local minimum its own prefix beats). Its residual aims the next ops at what the structure cannot
 fit, not at what a few more rounds would (example012: 642 control vertices at 3.0e-3 of the diagonal both ways
 and ahead of the quad-remesh baseline at every front point, against 1,056 at 3.1e-3 and five front points
 behind it without). When no single
@@ -68,7 +70,6 @@ LEVEL_TRIES = 3  # proposals given the full fit, best first, until one gains
 MIN_GAIN = 0.995  # a level must shrink the distance below this factor of the last one's
 FINISH_ROUNDS = 60  # most rounds the last cage's fit gets after the levels (:func:`_finish`)
 FILL_STEP = 1.25  # the front's points between levels (:func:`_fill_front`) grow by at least this factor
-FILL_SHARE = 0.5  # and are filled for at most this share of the refinement's own seconds (no fill starts after)
 FRONT_TAIL = 1.5  # the front's cages are finished while this many times the final cage's tail is left
 SNAP_PASSES = 3  # passes of snapping far control vertices onto the target and refitting (:func:`snapped`)
 SNAP_FACTOR = 2.0
@@ -434,22 +435,24 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
            record: Callable[[PolyMesh, float, tuple], None] | None = None,
            should_stop: Callable[[], bool] | None = None,
            tail: Callable[[int], float] | None = None,
-           deferred: list[tuple[list[Level], Callable[[float], None]]] | None = None) -> tuple[tuple, list[Level]]:
+           deferred: list[tuple[list[Level], Callable[[int], None]]] | None = None) -> tuple[tuple, list[Level]]:
     """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
     docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
     largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
     to it. ``tail(vertices)``: the seconds the caller needs after the refinement for a cage that size (kept
     free before the deadline; each fit, residual and commit is timed and the next predicted from them,
     :class:`Timing`). Returns the refined genome and the levels. The front's points between levels
-    (:func:`_fill_front`) are filled in the time left, for at most ``FILL_SHARE`` of the refinement's seconds, or,
-    with ``deferred``, appended there as ``(levels, a call that fills them for at most the seconds given)`` for
-    the caller to run after its other refinements.
+    (:func:`_fill_front`) are filled in the time left, for at most ``config.refine_fill`` of the refinement's
+    work (:attr:`~gsr_cad.reconstruct.surface.SurfaceProblem.evaluations`, which a seed repeats, where seconds
+    would not), or, with ``deferred``, appended there as ``(levels, a call that fills them for at most the
+    evaluations given)`` for the caller to run after its other refinements.
 
     The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
     template's own geometry, where they apply cleanly) followed by one move per control vertex to the
     fitted cage; when those moves cannot all replay, each level's ops follow the previous level's moves.
     """
     started = time.perf_counter()
+    work = problem.evaluations
     out_of_time = _stop_when(deadline, should_stop)
     _fit = _Fitter(problem, deadline, tail)
     genome = tuple(genome)
@@ -473,6 +476,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     mesh = fitted.with_vertices(v)
     levels = [Level((), mesh, cost, time.perf_counter() - started)]
     stages = [(base, base_state, full, mesh, cost)]  # what each level's cage is built from (for _finish)
+    middles: set[int] = set()  # the vertices of the prefixes fitted by _middle (the fills skip them)
     if record is not None:
         record(mesh, cost, full)
     while (cost > goal and mesh.n_faces < max_faces and not out_of_time()
@@ -557,6 +561,20 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         done = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full)
         if done is not None:
             base, base_state, full, mesh, cost = done
+        # a level of several ops can be a local minimum that a prefix of them beats: the prefix nearest the middle
+        # of its growth is fitted too, and the closer is the level (airplane, its placed cube refined with no time
+        # limit: the 26 -> 98-vertex split fitted 7.8e-3 of the diagonal, its 56-vertex prefix 6.7e-3; on from the
+        # prefix, 102 vertices 3.5e-3 where the path from the split had 5.4e-3, and 164 2.7e-3 where it had 166 at
+        # 3.1e-3)
+        mid = _middle(problem, _fit, out_of_time, stages[-1], ops, mesh)
+        if mid is not None:
+            middles.add(mid[4].n_vertices)
+        if mid is not None and record is not None:
+            record(mid[4], mid[5], mid[3])
+        if mid is not None and mid[5] < cost:
+            if record is not None:
+                record(mesh, cost, full)
+            ops, base, base_state, full, mesh, cost = mid
         levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
         stages.append((base, base_state, full, mesh, cost))
         if record is not None:
@@ -581,13 +599,13 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if done is not None:
                 record(done[3], done[4], done[2])
 
-        def fill(seconds: float) -> None:
-            until = time.perf_counter() + seconds
-            _fill_front(problem, front_fit, lambda: out_of_time() or time.perf_counter() >= until, stages, levels,
-                        record)
+        def fill(evaluations: int) -> None:
+            until = problem.evaluations + evaluations
+            _fill_front(problem, front_fit, lambda: out_of_time() or problem.evaluations >= until, stages, levels,
+                        record, middles)
 
         if deferred is None:
-            fill(FILL_SHARE * (time.perf_counter() - started))
+            fill(int(problem.config.refine_fill * (problem.evaluations - work)))
         else:
             deferred.append((levels, fill))
     return full, levels
@@ -624,7 +642,8 @@ def _prefix_sizes(ops: tuple, mesh: PolyMesh) -> list[int]:
 
 
 def _fill_front(problem, _fit, out_of_time, stages: list[tuple], levels: list[Level],
-                record: Callable[[PolyMesh, float, tuple], None]) -> None:
+                record: Callable[[PolyMesh, float, tuple], None],
+                skip: set[int] | frozenset[int] = frozenset()) -> None:
     """Points of the front between levels that grew the cage by several ops at once (a split, a balanced split,
     a batch of insets): a prefix of the level's ops, fitted, committed and finished as a level, in the time left
     (the smallest gaps first). A user picking a simpler cage (``--max-distance``) then gets a cage of about that
@@ -636,40 +655,66 @@ def _fill_front(problem, _fit, out_of_time, stages: list[tuple], levels: list[Le
     prefix's vertices are the first ones of the level's cage). The second is ahead where the previous level's
     fit is a local minimum that the prefix's loops do not leave (bone, 30 -> 114 vertices by seven loops, their
     prefixes fitted both ways: 54 vertices 1.05e-2 and 7.6e-3 of the diagonal, 90 vertices 8.2e-3 and 3.8e-3;
-    each next larger filled cage as the start instead did no better)."""
+    each next larger filled cage as the start instead did no better). Prefixes of ``skip``'s sizes (control
+    vertices) were fitted by the refinement already (:func:`_middle`)."""
     for stage, level in zip(stages, levels[1:]):
-        base, base_state, full, mesh, cost = stage
+        mesh = stage[3]
         ops = level.ops
         if len(ops) < 2 or level.control.n_vertices < FILL_STEP ** 2 * mesh.n_vertices:
             continue
         sizes = _prefix_sizes(ops[:-1], mesh)
         for k in fill_counts(sizes, mesh.n_vertices, level.control.n_vertices):
-            part = ops[:k + 1]
+            if sizes[k] in skip:  # fitted by the refinement already (:func:`_middle`)
+                continue
             if out_of_time():
                 return
-            b = _apply(part, mesh)
-            if b is None:
-                b = carried(part, mesh)
-            if b is None or not _fit.fits_in_time(b, 2 * LEVEL_ROUNDS):
-                continue
-            tries = []
-            for start in (b, b.with_vertices(level.control.vertices[:b.n_vertices])):
-                try:
-                    tries.append(_fit(start, LEVEL_ROUNDS, fairing=0.0))
-                except GsrError:
-                    continue
-            if not tries:
-                continue
-            v, c = min(tries, key=lambda t: t[1])
-            if not c < MIN_GAIN * cost:
-                continue
-            chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c,
-                                    cost)
-            if chosen is None or len(chosen[3]) > MAX_OPS:
-                continue
-            done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4])
-            cage, c, genome = (done[3], done[4], done[2]) if done is not None else (chosen[4], chosen[5], chosen[3])
-            record(cage, c, genome)
+            done = _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], level.control)
+            if done is not None:
+                record(done[4], done[5], done[3])
+
+
+def _middle(problem, _fit, out_of_time, stage: tuple, ops: tuple, control: PolyMesh) -> tuple | None:
+    """The prefix of a level's several ops (``ops``, built on ``stage``'s cage, converged at ``control``) nearest the
+    geometric middle of the level's growth, as :func:`_prefix_level` makes it; None for a level of one op or little
+    growth."""
+    low, high = stage[3].n_vertices, control.n_vertices
+    if len(ops) < 2 or high < FILL_STEP ** 2 * low:
+        return None
+    sizes = _prefix_sizes(ops[:-1], stage[3])
+    ks = [k for k, n in enumerate(sizes) if FILL_STEP * low <= n <= high / FILL_STEP]
+    if not ks:
+        return None
+    k = min(ks, key=lambda k: abs(math.log(sizes[k] / math.sqrt(low * high))))
+    return _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], control)
+
+
+def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control: PolyMesh) -> tuple | None:
+    """The cage ``part`` (a prefix of a level's ops) builds from the level before it (``stage``: its
+    ``(base, base_state, genome, cage, distance)``), fitted from two starts (:func:`_fill_front`; ``control``: the
+    level's own converged cage), snapped, committed and finished as a level: ``(ops, base, base_state, genome,
+    cage, distance)``, or None when it does not gain on the level before or cannot replay."""
+    base, base_state, full, mesh, cost = stage
+    b = _apply(part, mesh)
+    if b is None:
+        b = carried(part, mesh)
+    if b is None or not _fit.fits_in_time(b, 2 * LEVEL_ROUNDS):
+        return None
+    tries = []
+    for start in (b, b.with_vertices(control.vertices[:b.n_vertices])):
+        try:
+            tries.append(_fit(start, LEVEL_ROUNDS, fairing=0.0))
+        except GsrError:
+            continue
+    if not tries:
+        return None
+    v, c = min(tries, key=lambda t: t[1])
+    if not c < MIN_GAIN * cost:
+        return None
+    chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c, cost)
+    if chosen is None or len(chosen[3]) > MAX_OPS:
+        return None
+    done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4])
+    return chosen if done is None else (part, *done)
 
 
 def _finish(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,

@@ -95,7 +95,7 @@ from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
-from .refine import FILL_SHARE, _inradius, _reach, refine, snapped_within
+from .refine import _inradius, _reach, refine, snapped_within
 from .result import MAX_OPS, Result
 from .snap import snap_far_vertices
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
@@ -213,6 +213,9 @@ class SurfaceProblem:
         self.max_faces = max(config.max_control_faces, 2 * template.n_faces)
         self._states: OrderedDict[tuple, tuple[int, PolyMesh | None]] = OrderedDict()
         self._last_node = 0  # the number of the latest replayed prefix (see :meth:`_step`)
+        self.evaluations = 0
+        """Limit surfaces measured against the target by :meth:`fit` so far (its rounds and their checks): a count of
+        the work that, unlike seconds, the same inputs repeat (the refinement's front fills are bounded by it)."""
         proposals = (CreaseProposals(target.points, target.faces, boundary=config.boundary)
                      if set("CR") & set(config.op_kinds) else None)
         self.creases = (proposals.edges, proposals.faces) if proposals else (None, None)
@@ -556,6 +559,7 @@ class SurfaceProblem:
         for r in range(max(rounds, 0) + 2):
             surface = LimitSurface(layout, V)
             pairs, cost = self._pairs(surface, hint)
+            self.evaluations += 1
             hint = pairs.foot
             if cost < best_cost:
                 best_v, best_cost = V, cost
@@ -1259,6 +1263,21 @@ def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, ex
             "fit_to_data_max": float(d_fit.max() / diag)}
 
 
+def _evaluated_from(problem: SurfaceProblem, memo: dict[tuple, float]) -> None:
+    """``problem.evaluated`` made up from the search's memo (genome -> cost, in the order they were scored), for the
+    genomes scored elsewhere: in a process pool's workers, or before a resumed run's checkpoint. The front then does
+    not depend on where the costs were computed (a pool's run had lost the search's cages from its front)."""
+    for genome, cost in memo.items():
+        if not math.isfinite(cost):
+            continue
+        try:
+            n = problem.control_mesh(genome).n_vertices
+        except GsrError:
+            continue
+        if n not in problem.evaluated or cost < problem.evaluated[n][0]:
+            problem.evaluated[n] = (cost, tuple(genome))
+
+
 def front(evaluated: dict[int, tuple[float, tuple]]) -> list[tuple[int, float, tuple]]:
     """The accuracy/complexity front: ``(control vertices, distance, genome)`` of the evaluated genomes that
     no other dominates in (control vertices, distance) (:func:`~gsr_cad.ga.pareto.non_dominated`, pymoo's
@@ -1401,6 +1420,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
 
     run: RunResult = engine.run(on_generation=on_generation, should_stop=should_stop, checkpoint=checkpoint)
     best = tuple(run.best_genome)
+    _evaluated_from(problem, engine.memo)
     pareto = front(problem.evaluated)
     if config.max_distance is not None and not refining:  # (the refinement picks on its own measure)
         meets = [entry for entry in pareto if entry[1] <= config.max_distance]
@@ -1720,7 +1740,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         return Growth(meets[0][2], meets[0][1], front(found), [])
     faces = refine_face_limit(target, config.refine_max_faces)
     started = time.perf_counter()
-    fills: list[tuple[list, Callable[[float], None]]] = []  # the front's points between levels, after both paths
+    work = grower.evaluations
+    fills: list[tuple[list, Callable[[int], None]]] = []  # the front's points between levels, after both paths
     final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail, fills)
     quads = bool(np.all(grower.template.face_sizes == 4))
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
@@ -1741,11 +1762,12 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail, fills)
         if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
             final, levels = again, more
-    # the kept path's first, all of them for at most FILL_SHARE of the refinement's seconds (a run that met its goal
-    # early does not spend the rest of its budget on them: bone 176 s -> 286 s with no limit)
-    until = time.perf_counter() + FILL_SHARE * (time.perf_counter() - started)
+    # the kept path's first, all of them for at most config.refine_fill of the refinement's fit rounds (a run that met
+    # its goal early does not spend the rest of its budget on them: bone 176 s -> 286 s with no limit); counted, not
+    # timed, so that a seed repeats the front
+    until = grower.evaluations + int(config.refine_fill * (grower.evaluations - work))
     for _, fill in sorted(fills, key=lambda job: job[0] is not levels):
-        fill(until - time.perf_counter())
+        fill(until - grower.evaluations)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
             for lv in levels]
