@@ -13,11 +13,13 @@ from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset
+from gsr_cad.ops.mesh_conn import mesh_view
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
-from gsr_cad.reconstruct.refine import (_after, _prefix_sizes, balanced_split, candidates, carried, edge_rings,
-                                         fill_counts, inset_batch, limit_cage, pocket, refine, residual, split_all)
+from gsr_cad.reconstruct.refine import (_after, _prefix_sizes, balanced_split, budget_split, candidates, carried,
+                                         edge_rings, fill_counts, inset_batch, limit_cage, pocket, refine, residual,
+                                         split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
 from gsr_cad.reconstruct.summary import stop_text
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES
@@ -132,6 +134,46 @@ def test_a_batch_of_insets_takes_the_residual_share_and_at_most_a_quarter_of_the
     share = res.total[faces].sum() / res.total.sum()
     assert share >= 0.5 or len(faces) == 24
     assert res.total[faces[:-1]].sum() / res.total.sum() < 0.5 or len(faces) == 24
+
+
+def test_a_budget_split_cuts_the_rings_with_most_residual_while_the_cage_has_room():
+    truth = _blob(2)
+    fine = get_catmull_clark(_cube(), 2, "all").refine(_cube().vertices)  # 96 faces, 12 rings of 16
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    res = residual(SurfaceProblem(target, SurfaceConfig(max_target_points=2000), fine), fine)
+    ops = budget_split(fine, res, lambda mesh: mesh.n_faces <= 160)
+    assert len(ops) >= 2 and all(isinstance(op, EdgeLoop) for op in ops)
+    rings = {frozenset(mesh_view(fine).conn.edges[e]): res.total[faces].sum() for e, faces in edge_rings(fine)}
+    totals, mesh = [], limit_cage(fine)
+    for op in ops:
+        totals.append(rings[frozenset(mesh_view(mesh).conn.edges[op.edge])])
+        mesh = op.apply(mesh)
+    assert totals == sorted(totals, reverse=True)
+    assert 120 <= mesh.n_faces <= 160  # each loop adds 16 to 24 faces: the next would not have had room
+    assert max(rings.values()) == totals[0] and len(totals) < len(rings)
+    assert budget_split(fine, res, lambda mesh: mesh.n_faces <= 100) == ()  # one loop only: proposed on its own
+
+
+def test_the_refinement_grows_by_a_budget_split_where_a_split_has_no_room(monkeypatch):
+    import gsr_cad.reconstruct.refine as refine_module
+
+    for name, none in (("candidates", []), ("inset_batch", ()), ("pocket", ()), ("_fallback", None)):
+        monkeypatch.setattr(refine_module, name, lambda *args, none=none: none)
+    cube = _cube()
+    fine = get_catmull_clark(cube, 2, "all").refine(cube.vertices)  # a blob that 96 faces fit and 24 do not
+    rng = np.random.default_rng(1)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.3 * rng.random((fine.n_vertices, 1))))
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000, refine_fill=0.0), box_template(target))
+    problem.max_faces = 60
+    genome, levels = refine(problem, (), 2e-4, time.perf_counter() + 90, 60)
+    sizes = [lv.control.n_faces for lv in levels]
+    assert 24 in sizes and max(sizes) <= 60 and max(sizes) > 24  # the split to 96 faces had no room
+    grown = [lv for lv in levels if lv.control.n_faces > 24 and len(lv.ops) >= 2]
+    assert grown and all(isinstance(op, EdgeLoop) for op in grown[0].ops)
+    assert grown[0].cost < 0.5 * min(lv.cost for lv in levels if lv.control.n_faces <= 24)
+    replayed = problem.control_mesh(genome)
+    assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
 
 
 @pytest.mark.parametrize("seed, fill", [(0, 0.5), (1, 0.0)])
@@ -258,6 +300,7 @@ def test_the_refinement_keeps_going_when_no_single_proposal_is_left(monkeypatch)
     monkeypatch.setattr(refine_module, "candidates", lambda mesh, res: [])
     monkeypatch.setattr(refine_module, "split_all", lambda state, fitted: None)
     monkeypatch.setattr(refine_module, "inset_batch", lambda mesh, res: ())
+    monkeypatch.setattr(refine_module, "budget_split", lambda mesh, res, room: ())
     target = surface_target(limit_mesh(_blob(0), 3), "blob")
     problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
     problem.max_faces = 400

@@ -13,7 +13,8 @@ the error is, not around whole rings); and a split of the whole cage (an edge lo
 connectivity, its vertices placed so that the limit surface stays the same, :func:`split_all`); and a balanced
 split (edge loops across the rings with the longest edges until the cage has ``BALANCED_GROWTH`` times its
 vertices, :func:`balanced_split`: quads about square, where a split keeps a box's proportions on an elongated
-target). Each proposal is fitted by a few rounds of the adaptive least-squares fit
+target); when no split fits the faces or the time left, as many of its loops as do, across the rings with most
+residual (:func:`budget_split`). Each proposal is fitted by a few rounds of the adaptive least-squares fit
 (:meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`, sparse, which keeps every face sound and clear
 of the ops' limits), a split or a balanced split by a full fit (it starts at about the same distance); the one that gains most for
 its growth (``LEVEL_COST``) is kept and fitted further, the next one when its full fit gains too little or
@@ -285,6 +286,35 @@ def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[Mes
     return tuple(ops)
 
 
+def budget_split(mesh: PolyMesh, res: Residual, room: Callable[[PolyMesh], bool]) -> tuple[MeshOp, ...]:
+    """Edge loops across the rings carrying most residual, most first, while the cage they build has ``room`` (the
+    time or faces left; a split, every ring at once, has not): a split's resolution where the error is, as much
+    of it as the budget holds. The rings are cut on the first limit cage (:func:`limit_cage`), where a converged
+    cage's skewed quads would fold under them. Empty when fewer than two loops fit or they grow the cage less
+    than ``FILL_STEP`` times (a single loop is proposed on its own)."""
+    rings = edge_rings(mesh)
+    if len(rings) < 2:
+        return ()
+    total = np.array([res.total[faces].sum() for _, faces in rings])
+    ends = mesh_view(mesh).conn.edges
+    ops: tuple[MeshOp, ...] = ()
+    built = limit_cage(mesh)
+    for i in np.argsort(-total, kind="stable"):
+        # a loop splits only its own ring's edges: the others keep their ends, found by them
+        index = {frozenset(e): k for k, e in enumerate(mesh_view(built).conn.edges)}
+        e = index.get(frozenset(ends[rings[int(i)][0]]))
+        if e is None:
+            continue
+        try:
+            grown = EdgeLoop(e).apply(built)
+        except OpError:
+            continue
+        if not room(grown):
+            break
+        ops, built = ops + (EdgeLoop(e),), grown
+    return ops if len(ops) >= 2 and built.n_vertices >= FILL_STEP * mesh.n_vertices else ()
+
+
 def split_all(state: PolyMesh, fitted: PolyMesh) -> tuple[tuple[MeshOp, ...], PolyMesh, PolyMesh] | None:
     """An edge loop through every ring of ``state`` (a closed all-quad mesh whose rings are all closed):
     the connectivity of one Catmull-Clark step. Returns ``(the loops, the mesh they build from state,
@@ -414,6 +444,16 @@ class _Fitter:
             ahead += self.timing.predict(extra, n)
         return time.perf_counter() + ahead <= end
 
+    def has_room(self, mesh: PolyMesh, rounds: int) -> bool:
+        """Whether ``rounds`` rounds of a fit of ``mesh`` (all of them, where :meth:`fits_in_time` asks for the
+        first few), its residual and its commit are predicted to end before its deadline."""
+        end = self.end(mesh)
+        if end is None:
+            return True
+        n = mesh.n_vertices
+        ahead = self.timing.predict("round", n) * (rounds + 1) + self.timing.predict("residual", n)
+        return time.perf_counter() + ahead <= end
+
     def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS,
                  fairing: float | None = None) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
@@ -504,6 +544,13 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 proposals.append((balanced, a if a is not None and a.topology_key == b.topology_key else None, b))
         batch = inset_batch(mesh, res)
         local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (pocket(mesh, res), batch) if ops]
+        if not any(b.n_faces <= max_faces and _fit.fits_in_time(b, LEVEL_ROUNDS) for _, _, b in proposals):
+            # no split fits the faces or the time left: as many of its loops as do, where the residual is (airplane,
+            # its placed cube refined up to 250 faces: from 82 control vertices at 4.6e-3 of the diagonal, 132 at
+            # 2.6e-3 and on to 181 at 1.7e-3, where single loops went on to 164 at 2.7e-3)
+            part = budget_split(mesh, res, lambda g: g.n_faces <= max_faces and _fit.has_room(g, 2 * LEVEL_ROUNDS))
+            if part:
+                local.append(part)
         for ops in local:
             b = _apply(ops, mesh)
             if b is None:
