@@ -9,7 +9,8 @@ import numpy as np
 
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
-from gsr_cad.reconstruct.surface import front, reconstruct_surface, surface_metrics
+from gsr_cad.reconstruct.surface import (SurfaceProblem, _evaluated_from, box_template, front, reconstruct_surface,
+                                         surface_metrics)
 
 SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
              generations=1, final_polish_rounds=5, simplify_history=False)
@@ -18,6 +19,32 @@ SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, 
 def test_front_keeps_only_the_non_dominated():
     evaluated = {8: (0.3, ("a",)), 12: (0.1, ("b",)), 16: (0.2, ("c",)), 20: (0.05, ("d",)), 24: (math.inf, ())}
     assert [(n, c) for n, c, _ in front(evaluated)] == [(8, 0.3), (12, 0.1), (20, 0.05)]
+
+
+def test_the_front_made_up_from_a_memo_equals_the_one_scored_here_and_replays_only_what_was_scored_elsewhere():
+    k = np.arange(600) + 0.5
+    polar, azimuth = np.arccos(1 - 2 * k / 600), np.pi * (1 + 5 ** 0.5) * k
+    target = surface_target(np.c_[2 * np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth),
+                                  np.cos(polar)], "ellipsoid")
+    config = SurfaceConfig(max_target_points=600, polish_rounds=2)
+    here = SurfaceProblem(target, config, box_template(target))
+    rng = np.random.default_rng(4)
+    genomes = []
+    for _ in range(12):
+        genome: tuple = ()
+        for _ in range(int(rng.integers(1, 5))):
+            genome += (here.random_gene(rng, genome),)
+        genomes.append(here.repair(genome, rng))
+    memo = {g: here.cost(g) for g in genomes}
+    elsewhere = SurfaceProblem(target, config, box_template(target))  # a pool's main process: scored nothing
+    _evaluated_from(elsewhere, memo)
+    assert elsewhere.evaluated == here.evaluated and len(here.evaluated) >= 2
+    replays = []
+    real = here.control_mesh
+    here.control_mesh = lambda genome: replays.append(genome) or real(genome)
+    before = dict(here.evaluated)
+    _evaluated_from(here, memo)
+    assert replays == [] and here.evaluated == before
 
 
 def test_the_runs_front_is_non_dominated_and_max_distance_picks_the_simplest():

@@ -222,12 +222,15 @@ class SurfaceProblem:
         self.proposals = proposals
         self.evaluated: dict[int, tuple[float, tuple]] = {}
         """Per control-vertex count, the cheapest genome scored in this process (for :func:`front`)."""
+        self.scored: set[tuple] = set()
+        """The genomes :meth:`cost` scored in this process (in ``evaluated`` already where they are the cheapest)."""
 
     def __getstate__(self) -> dict[str, Any]:
         state = dict(self.__dict__)
         state["_states"] = OrderedDict()
         state["_last_node"] = 0
         state["evaluated"] = {}
+        state["scored"] = set()
         return state
 
     # --- replay with a prefix cache ----------------------------------------------------------------------
@@ -385,6 +388,7 @@ class SurfaceProblem:
 
     def cost(self, genome: tuple) -> float:
         """The configured distance after the evaluation polish (inf for a genome that does not replay)."""
+        self.scored.add(tuple(genome))
         try:
             e = self.evaluate(genome, self.config.polish_rounds)
         except GsrError:  # an op that cannot apply, or a mesh the subdivision refuses
@@ -1266,9 +1270,10 @@ def two_sided(surface: LimitSurface, target: SurfaceTarget, data: np.ndarray, ex
 def _evaluated_from(problem: SurfaceProblem, memo: dict[tuple, float]) -> None:
     """``problem.evaluated`` made up from the search's memo (genome -> cost, in the order they were scored), for the
     genomes scored elsewhere: in a process pool's workers, or before a resumed run's checkpoint. The front then does
-    not depend on where the costs were computed (a pool's run had lost the search's cages from its front)."""
+    not depend on where the costs were computed (a pool's run had lost the search's cages from its front). The
+    genomes scored in this process are there already: a serial run replays none."""
     for genome, cost in memo.items():
-        if not math.isfinite(cost):
+        if not math.isfinite(cost) or genome in problem.scored:
             continue
         try:
             n = problem.control_mesh(genome).n_vertices
