@@ -17,7 +17,7 @@ from gsr_cad.ops.mesh_conn import mesh_view
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
-from gsr_cad.reconstruct.refine import (_after, _prefix_sizes, balanced_split, budget_split, candidates, carried,
+from gsr_cad.reconstruct.refine import (KINDS, _after, _prefix_sizes, balanced_split, budget_split, candidates, carried,
                                          edge_rings, fill_counts, inset_batch, limit_cage, pocket, refine, residual,
                                          split_all)
 from gsr_cad.reconstruct.surface import SurfaceProblem, box_template, reconstruct_surface
@@ -171,6 +171,7 @@ def test_the_refinement_grows_by_a_budget_split_where_a_split_has_no_room(monkey
     assert 24 in sizes and max(sizes) <= 60 and max(sizes) > 24  # the split to 96 faces had no room
     grown = [lv for lv in levels if lv.control.n_faces > 24 and len(lv.ops) >= 2]
     assert grown and all(isinstance(op, EdgeLoop) for op in grown[0].ops)
+    assert grown[0].kind == "budget split" and levels[1].kind == "split"
     assert grown[0].cost < 0.5 * min(lv.cost for lv in levels if lv.control.n_faces <= 24)
     replayed = problem.control_mesh(genome)
     assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
@@ -188,6 +189,14 @@ def test_refinement_grows_the_cage_until_it_fits_and_replays(seed, fill):
                             record=lambda mesh, cost, history: seen.append((mesh.n_vertices, cost, history)))
     costs = [lv.cost for lv in levels]
     assert len(levels) >= 2 and all(b < a for a, b in zip(costs, costs[1:]))
+    # each level says what made it: single ops by their name, a level of several by its proposal, a finish no ops
+    assert levels[0].kind == "start" and all(lv.kind in KINDS for lv in levels)
+    for lv in levels[1:]:
+        assert (lv.kind == "finish") == (not lv.ops)
+        if len(lv.ops) == 1:
+            assert lv.kind in (lv.ops[0].name.replace("_", " "), "middle prefix", "loops at once")
+        else:
+            assert lv.kind not in ("edge loop", "extrude", "inset", "bevel")
     assert levels[0].control.n_vertices == 8 and levels[-1].control.n_vertices > 8
     for level in levels[1:]:  # each level converged before the next grew from it: more rounds gain little
         more = problem.fit(level.control, 10, min_gain=1.0, adaptive=True, stiffness=0.1, fairing=0.0)[1]

@@ -91,13 +91,21 @@ that gains more per added vertex when the residual is spread (coarse to fine wit
 
 @dataclasses.dataclass(frozen=True)
 class Level:
-    """One refinement level: the ops added (none for the starting cage), the fitted cage, its distance and
-    the seconds since the refinement started."""
+    """One refinement level: the ops added (none for the starting cage), the fitted cage, its distance, the
+    seconds since the refinement started and the proposal that made it (``KINDS``)."""
 
     ops: tuple[MeshOp, ...]
     control: PolyMesh
     cost: float
     seconds: float
+    kind: str = "start"
+
+
+KINDS = ("start", "split", "balanced split", "budget split", "edge loop", "extrude", "inset", "bevel", "pocket",
+         "inset batch", "loops at once", "middle prefix", "finish")
+"""What made a level: the cage the refinement started from, a proposal of the module docstring (a single op by its
+name; ``loops at once``: :func:`_fallback`), the middle prefix of a level of several ops (:func:`_middle`), or the
+last cage fitted on to convergence."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -514,7 +522,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
 
     full, v, cost = _fit.timed("commit", fitted, start)
     mesh = fitted.with_vertices(v)
-    levels = [Level((), mesh, cost, time.perf_counter() - started)]
+    levels = [Level((), mesh, cost, time.perf_counter() - started, "start")]
     stages = [(base, base_state, full, mesh, cost)]  # what each level's cage is built from (for _finish)
     middles: set[int] = set()  # the vertices of the prefixes fitted by _middle (the fills skip them)
     if record is not None:
@@ -534,16 +542,22 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if split is not None:
                 split = (split[0], None, split[2])
                 break
+        kinds: dict[tuple, str] = {}
         if split is not None:
             proposals.append(split)
+            kinds[split[0]] = "split"
         balanced = balanced_split(mesh)
         if balanced:
             b = _apply(balanced, mesh)
             if b is not None:
                 a = _apply(balanced, base_state)
                 proposals.append((balanced, a if a is not None and a.topology_key == b.topology_key else None, b))
+                kinds.setdefault(balanced, "balanced split")
         batch = inset_batch(mesh, res)
-        local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (pocket(mesh, res), batch) if ops]
+        dug = pocket(mesh, res)
+        local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (dug, batch) if ops]
+        kinds.update({dug: "pocket", batch: "inset batch"})
+        kinds.update({ops: ops[0].name.replace("_", " ") for ops in local if len(ops) == 1})
         if not any(b.n_faces <= max_faces and _fit.fits_in_time(b, LEVEL_ROUNDS) for _, _, b in proposals):
             # no split fits the faces or the time left: as many of its loops as do, where the residual is (airplane,
             # its placed cube refined up to 250 faces: from 82 control vertices at 4.6e-3 of the diagonal, 132 at
@@ -551,6 +565,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             part = budget_split(mesh, res, lambda g: g.n_faces <= max_faces and _fit.has_room(g, 2 * LEVEL_ROUNDS))
             if part:
                 local.append(part)
+                kinds.setdefault(part, "budget split")
         for ops in local:
             b = _apply(ops, mesh)
             if b is None:
@@ -600,6 +615,9 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                     break
         if chosen is None:
             chosen = _fallback(problem, _fit, out_of_time, mesh, cost, base, base_state, full, res, max_faces)
+            kind = "loops at once"
+        else:
+            kind = kinds.get(chosen[0], "loops at once")
         if chosen is None:
             break
         if len(chosen[3]) > MAX_OPS:  # a history no result may hold (moves staged past merging): the last level stands
@@ -622,14 +640,15 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             if record is not None:
                 record(mesh, cost, full)
             ops, base, base_state, full, mesh, cost = mid
-        levels.append(Level(ops, mesh, cost, time.perf_counter() - started))
+            kind = "middle prefix"
+        levels.append(Level(ops, mesh, cost, time.perf_counter() - started, kind))
         stages.append((base, base_state, full, mesh, cost))
         if record is not None:
             record(mesh, cost, full)
     finished = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full)
     if finished is not None:
         base, base_state, full, mesh, cost = finished
-        levels.append(Level((), mesh, cost, time.perf_counter() - started))
+        levels.append(Level((), mesh, cost, time.perf_counter() - started, "finish"))
         if record is not None:
             record(mesh, cost, full)
     if record is not None:

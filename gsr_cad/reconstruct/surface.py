@@ -1774,7 +1774,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     for _, fill in sorted(fills, key=lambda job: job[0] is not levels):
         fill(until - grower.evaluations)
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
-             "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds}
+             "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds, "proposal": lv.kind}
             for lv in levels]
     return Growth(final, levels[-1].cost, front(found), rows)
 
