@@ -524,3 +524,45 @@ def test_an_op_that_folds_a_face_is_carried_onto_the_fitted_cage():
         assert np.allclose(out.vertices[v], mid)
     flat = PolyMesh.from_faces(np.eye(3), [(0, 1, 2)])
     assert carried((EdgeLoop(0),), flat) is None  # no ring on a triangle: no smoother cage helps
+
+
+def test_only_cages_no_op_grows_from_are_fitted_with_free_corners(monkeypatch):
+    """No time limit (every level has room for another): the levels' fits keep corners convex, the last cage's
+    finish and the front's cages let them turn concave; no op is ever applied to a cage fitted with free
+    corners, and the last cage (fitted with them) replays from its genome."""
+    import gsr_cad.reconstruct.refine as refine_module
+
+    truth = _blob(0)
+    target = surface_target(limit_mesh(truth, 3), "blob0")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000, refine_fill=0.0), box_template(target))
+    problem.max_faces = 30
+    free: set[bytes] = set()
+    flags: list[bool] = []
+    fit = problem.fit
+
+    def logged(mesh, rounds, *args, convex=True, **kwargs):
+        flags.append(convex)
+        v, c = fit(mesh, rounds, *args, convex=convex, **kwargs)
+        if not convex:
+            free.add(np.asarray(v).tobytes())
+        return v, c
+
+    def checked(real):
+        def apply(ops, mesh, *args):
+            assert mesh.vertices.tobytes() not in free, "an op applied to a cage fitted with free corners"
+            return real(ops, mesh, *args)
+        return apply
+
+    monkeypatch.setattr(problem, "fit", logged)
+    monkeypatch.setattr(refine_module, "_apply", checked(refine_module._apply))
+    monkeypatch.setattr(refine_module, "carried", checked(refine_module.carried))
+    seen = []
+    genome, levels = refine(problem, (), 1e-9, None, 30,
+                            record=lambda mesh, cost, history: seen.append((mesh.n_vertices, cost, history)))
+    assert len(levels) >= 3 and False in flags
+    first_free = flags.index(False)
+    assert all(flags[:first_free]) and len(flags[:first_free]) > 10  # every level's fits kept corners convex
+    assert levels[-1].kind == "finish" and levels[-1].cost < levels[-2].cost
+    assert levels[-1].control.vertices.tobytes() in free
+    replayed = problem.control_mesh(genome)
+    assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal

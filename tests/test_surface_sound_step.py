@@ -81,3 +81,35 @@ def test_random_steps_end_sound(seed, scale):
     share = _shares(V, out, step)
     allowed = np.array([0.0] + [0.5 ** h for h in range(_HALVINGS + 1)])
     assert np.all(np.min(np.abs(share[:, None] - allowed[None, :]), axis=1) < 1e-9)
+
+
+def test_free_corners_allow_a_concave_corner_but_keep_the_margin():
+    """A refined cube with one vertex pushed across the diagonal of a face's corner (that face's corner turns
+    concave, the face stays star-shaped): the fit's margin refuses it with convex corners and accepts it with
+    ``convex`` False; a face squeezed to a sliver is refused either way."""
+    cage = _cage()
+    V = cage.vertices.copy()
+    ref = cage.face_newell
+    assert not _unsound_faces(cage, ref, _FIT_MARGIN).any()
+    f = 0
+    a, b, c, d = cage.faces[f]
+    # b pushed towards the face's centre, past the diagonal a-c: the corner at b turns concave (reflex)
+    centre = V[[a, b, c, d]].mean(axis=0)
+    bent = V.copy()
+    bent[b] = centre + 0.3 * (centre - V[b])
+    moved = cage.with_vertices(bent)
+    turn = np.cross(bent[b] - bent[a], bent[c] - bent[b]) @ (ref[f] / np.linalg.norm(ref[f]))
+    assert turn < 0.0  # the corner at b is concave
+    assert _unsound_faces(moved, ref, _FIT_MARGIN)[f]
+    assert not _unsound_faces(moved, ref, _FIT_MARGIN, convex=False)[f]
+    assert not _unsound_faces(moved, ref)[f]  # the ops' own checks accept it: its moves replay
+    # a sliver: b pushed onto a's place, but not quite
+    thin = V.copy()
+    thin[b] = V[a] + 1e-4 * (V[b] - V[a])
+    assert _unsound_faces(cage.with_vertices(thin), ref, _FIT_MARGIN, convex=False)[f]
+    # the step that bends the corner is taken whole with free corners, shortened with convex ones
+    step = bent - V
+    free = _sound_step(cage, V, step, ref, _FIT_MARGIN, convex=False)
+    kept = _sound_step(cage, V, step, ref, _FIT_MARGIN)
+    assert free is not None and np.allclose(free, bent)
+    assert kept is None or not np.allclose(kept, bent)

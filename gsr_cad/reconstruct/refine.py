@@ -25,8 +25,9 @@ nearest the middle of its growth, fitted alike, and the closer of the two is the
 can converge to a local minimum its own prefix beats). Its residual aims the next ops at what the structure cannot
 fit, not at what a few more rounds would (example012: 642 control vertices at 3.0e-3 of the diagonal both ways
 and ahead of the quad-remesh baseline at every front point, against 1,056 at 3.1e-3 and five front points
-behind it without). When no single
-proposal gains, several edge loops are added at once (:func:`_fallback`). Faces the fit starts from
+behind it without). Cages that ops grow from keep their corners convex (the ops then apply to them); those no
+op will grow from (the last level, the front's cages) are finished with corners free to turn concave
+(:func:`_finish`). When no single proposal gains, several edge loops are added at once (:func:`_fallback`). Faces the fit starts from
 unsound (a split of a skewed cage) keep their vertices; the rest of the cage still moves. The fits' back
 direction projects onto a fine mesh target's triangles near a bounded area sample of it
 (:class:`~gsr_cad.geometry.surface_distance.NearTriangles`), the reported metrics onto all of them. Levels
@@ -77,6 +78,7 @@ SNAP_FACTOR = 2.0
 LEVEL_SNAPS = 1  # snap passes after each level's fit (LEVEL_ROUNDS rounds each)
 SNAP_ROUNDS = 30
 REACH_REFITS = 2
+LAST_ROUNDS = 180  # a level with no room for this many more fit rounds is taken as the last (:func:`_finish`)
 SMOOTHINGS = 3  # smoother cages a level's ops may follow when they fold a face on the fitted one (:func:`_after`)
 REACH_SLACK = 1.05  # a partly replayed level's cage is refitted while it is this much farther than its fit
 """Where some of a level's moves refuse (they would fold a face on the way), the cage the others reach is fitted
@@ -463,10 +465,10 @@ class _Fitter:
         return time.perf_counter() + ahead <= end
 
     def __call__(self, mesh: PolyMesh, rounds: int, stiffness: float = STIFFNESS,
-                 fairing: float | None = None) -> tuple[np.ndarray, float]:
+                 fairing: float | None = None, convex: bool = True) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
-                               deadline=self.end(mesh), fairing=fairing)
+                               deadline=self.end(mesh), fairing=fairing, convex=convex)
         done = getattr(self.problem, "fit_rounds", rounds)
         self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
         return out
@@ -623,7 +625,9 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         if len(chosen[3]) > MAX_OPS:  # a history no result may hold (moves staged past merging): the last level stands
             break
         ops, base, base_state, full, mesh, cost = chosen
-        done = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full)
+        # a level likely the last (no time for another after its finish) is finished with free corners
+        done = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full,
+                       convex=_fit.has_room(mesh, LAST_ROUNDS))
         if done is not None:
             base, base_state, full, mesh, cost = done
         # a level of several ops can be a local minimum that a prefix of them beats: the prefix nearest the middle
@@ -645,7 +649,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         stages.append((base, base_state, full, mesh, cost))
         if record is not None:
             record(mesh, cost, full)
-    finished = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full)
+    finished = _finish(problem, _fit, out_of_time, mesh, cost, base, base_state, full, convex=False)
     if finished is not None:
         base, base_state, full, mesh, cost = finished
         levels.append(Level((), mesh, cost, time.perf_counter() - started, "finish"))
@@ -661,7 +665,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         for stage in stages[:-1]:
             if out_of_time():
                 break
-            done = _finish(problem, front_fit, out_of_time, stage[3], stage[4], *stage[:3])
+            done = _finish(problem, front_fit, out_of_time, stage[3], stage[4], *stage[:3], convex=False)
             if done is not None:
                 record(done[3], done[4], done[2])
 
@@ -734,7 +738,7 @@ def _fill_front(problem, _fit, out_of_time, stages: list[tuple], levels: list[Le
                 continue
             if out_of_time():
                 return
-            done = _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], level.control)
+            done = _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], level.control, convex=False)
             if done is not None:
                 record(done[4], done[5], done[3])
 
@@ -754,11 +758,13 @@ def _middle(problem, _fit, out_of_time, stage: tuple, ops: tuple, control: PolyM
     return _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], control)
 
 
-def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control: PolyMesh) -> tuple | None:
+def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control: PolyMesh,
+                  convex: bool = True) -> tuple | None:
     """The cage ``part`` (a prefix of a level's ops) builds from the level before it (``stage``: its
     ``(base, base_state, genome, cage, distance)``), fitted from two starts (:func:`_fill_front`; ``control``: the
     level's own converged cage), snapped, committed and finished as a level: ``(ops, base, base_state, genome,
-    cage, distance)``, or None when it does not gain on the level before or cannot replay."""
+    cage, distance)``, or None when it does not gain on the level before or cannot replay. ``convex`` False (a
+    front point only, no level): finished with free corners (:func:`_finish`)."""
     base, base_state, full, mesh, cost = stage
     b = _apply(part, mesh)
     if b is None:
@@ -779,27 +785,32 @@ def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control
     chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c, cost)
     if chosen is None or len(chosen[3]) > MAX_OPS:
         return None
-    done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4])
+    done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4], convex=convex)
     return chosen if done is None else (part, *done)
 
 
 def _finish(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple, base_state: PolyMesh,
-            full: tuple) -> tuple | None:
+            full: tuple, convex: bool = True) -> tuple | None:
     """A level's cage fitted on to convergence (up to ``FINISH_ROUNDS`` more rounds while they gain, in the
     time left), no new structure: ``(base, base_state, genome, cage, distance)``, or None when that gains
     less than ``MIN_GAIN`` (bone's 426-vertex cage: 1.6e-3 of the diagonal after its level's rounds, 4.5e-4
     after 60 more). The rounds with the fairing
     rows stop where those outweigh the residual; 30 rounds without them go on (642 vertices: 6.7e-4 -> 5.9e-4
-    both ways, where the faired fit could not gain a round)."""
+    both ways, where the faired fit could not gain a round).
+
+    ``convex`` False (a cage no op will grow from: the last level, the front's cages): the fit lets corners turn
+    concave, where a cage that ops will be applied to keeps them convex. Converged convex cages gain about 7 %
+    (example007, 386 control vertices: 7.8e-3 -> 7.3e-3 of the diagonal; airplane, 181: 1.70e-3 -> 1.58e-3);
+    free corners at every level lose more than that later (airplane's chain stopped at 110 vertices, 6.0e-3)."""
     if FINISH_ROUNDS <= 0 or out_of_time() or not _fit.fits_in_time(mesh, FINISH_ROUNDS):
         return None
     try:  # faired while that gains, then without the fairing rows, which stall a converged fit
-        v, c = _fit(mesh, FINISH_ROUNDS)
+        v, c = _fit(mesh, FINISH_ROUNDS, convex=convex)
         if not out_of_time():
-            v2, c2 = _fit(mesh.with_vertices(v), FINISH_ROUNDS // 2, fairing=0.0)
+            v2, c2 = _fit(mesh.with_vertices(v), FINISH_ROUNDS // 2, fairing=0.0, convex=convex)
             if c2 < c:
                 v, c = v2, c2
-        v, c, via = snapped(problem, _fit, out_of_time, mesh.with_vertices(v), c)
+        v, c, via = snapped(problem, _fit, out_of_time, mesh.with_vertices(v), c, convex=convex)
     except GsrError:
         return None
     if not c < MIN_GAIN * cost:
@@ -813,7 +824,7 @@ def _finish(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tuple
 
 
 def snapped(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, passes: int = SNAP_PASSES,
-             rounds: int = SNAP_ROUNDS) -> tuple[np.ndarray, float, tuple[np.ndarray, ...]]:
+            rounds: int = SNAP_ROUNDS, convex: bool = True) -> tuple[np.ndarray, float, tuple[np.ndarray, ...]]:
     """``mesh`` (fitted, at ``cost``) after up to ``passes`` passes of its snap (the
     control vertices whose limit points lie over ``SNAP_FACTOR`` times ``cost`` from the target) each followed
     by ``rounds`` rounds of the fit without fairing, while they gain: its vertices, cost and the positions on
@@ -830,7 +841,7 @@ def snapped(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, passes: int
         moved, count = problem.snap(mesh.with_vertices(v), SNAP_FACTOR * cost * problem.diag)
         if not count:
             break
-        v2, c2 = _fit(moved, rounds, fairing=0.0)
+        v2, c2 = _fit(moved, rounds, fairing=0.0, convex=convex)
         if not c2 < cost:
             break
         via += [v, moved.vertices]

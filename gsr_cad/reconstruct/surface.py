@@ -513,7 +513,7 @@ class SurfaceProblem:
 
     def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None,
             adaptive: bool = False, stiffness: float = 1.0, deadline: float | None = None,
-            fairing: float | None = None) -> tuple[np.ndarray, float]:
+            fairing: float | None = None, convex: bool = True) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
@@ -540,6 +540,8 @@ class SurfaceProblem:
         rounds measured 3.0e-3 of the diagonal faired, the cage as it came; 2.94e-3 without the rows).
         ``deadline`` (a ``time.perf_counter()`` value): no round starts that would end after it (each taking as
         long as the rounds so far). ``self.fit_rounds``: the rounds the last fit started (for time predictions).
+        ``convex`` False (a cage no op will be applied to): adaptive fits keep their margin on edge lengths, areas
+        and star shapes but let corners turn concave (:func:`_unsound_faces`).
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -550,7 +552,7 @@ class SurfaceProblem:
         hint = None
         rel, fails, stiff = self.config.polish_damping, 0, stiffness
         margin = _FIT_MARGIN if adaptive else 1.0
-        lenient = _unsound_faces(mesh, normals0, margin) if adaptive else None
+        lenient = _unsound_faces(mesh, normals0, margin, convex) if adaptive else None
         held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         plain: sp.csc_matrix | None = None  # the saved round's system without the fairing rows
@@ -626,7 +628,7 @@ class SurfaceProblem:
                                                   check_finite=False).reshape(n, 3) - V
                 except (np.linalg.LinAlgError, ValueError, RuntimeError):
                     break
-                trial = _sound_step(mesh, V, step, normals0, margin, lenient, held)
+                trial = _sound_step(mesh, V, step, normals0, margin, lenient, held, convex)
                 if trial is not None:
                     V, moved = trial, True
                     break
@@ -1008,13 +1010,13 @@ def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
 
 def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
                 margin: float = 1.0, lenient: np.ndarray | None = None,
-                held: np.ndarray | None = None) -> np.ndarray | None:
+                held: np.ndarray | None = None, convex: bool = True) -> np.ndarray | None:
     """``V`` moved by ``step``, each vertex of a face it would make unsound (:func:`_unsound_faces` with
     ``margin``, without it for the faces ``lenient``: those that were already inside the margin where the fit
     started) moving half as far in the next pass, down to ``_HALVINGS`` halvings (then not at all), in up to
     ``_STEP_PASSES`` passes, provided at least ``_STEP_KEEP`` of the step's length stays; None when no such move
     is sound. The faces ``held`` (unsound where the fit started) keep their vertices and are not checked: a few
-    such faces do not stop the rest of the cage from moving.
+    such faces do not stop the rest of the cage from moving. ``convex``: as :func:`_unsound_faces` takes it.
 
     Shortening only the offending vertices' steps, not holding them, keeps most of a round's progress: the
     bunny's split cage (738 control vertices) held 300-470 vertices a round and kept 2-10 % of the step's
@@ -1035,7 +1037,7 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
         if float(np.abs(s).sum()) < _STEP_KEEP * total:
             break
         moved = mesh.with_vertices(V + s)
-        bad = _unsound_faces(moved, normals0, margin)
+        bad = _unsound_faces(moved, normals0, margin, convex)
         if lenient is not None and lenient.any():
             bad[lenient] = _unsound_faces(moved, normals0)[lenient]
         if held is not None:
@@ -1047,12 +1049,14 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
     return None
 
 
-def _unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float = 1.0) -> np.ndarray:
+def _unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float = 1.0,
+                   convex: bool = True) -> np.ndarray:
     """Per face, True when it fails the mesh ops' own checks (:mod:`gsr_cad.ops.mesh_kernel`): a (nearly)
     zero-length edge or zero area, not star-shaped about its centroid, flipped against
     ``reference_normals`` or folded onto a neighbour; with ``margin`` > 1, that many times stricter on edge
     lengths, areas and star shapes and convex at every corner (by ``_CONVEX_SIN``), so that the vertex
-    moves to the mesh replay one by one through the states between and the structural ops apply to it."""
+    moves to the mesh replay one by one through the states between and the structural ops apply to it
+    (``convex`` False: corners may turn concave, for a cage no op will be applied to)."""
     diag = mesh.diagonal
     newell = mesh.face_newell
     twice_area = np.linalg.norm(newell, axis=1)
@@ -1066,7 +1070,7 @@ def _unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float 
     fan = np.einsum("ij,ij->i", np.cross(p - c, q - c), normal[topo.he_face])
     he_bad = ((np.einsum("ij,ij->i", q - p, q - p) < (margin * MK.MIN_EDGE_REL * diag) ** 2)
               | (fan < margin * MK.FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]))
-    if margin > 1.0:  # and every corner clearly convex: the ops (an edge loop's halves, an inset) then apply
+    if margin > 1.0 and convex:  # and every corner clearly convex: the ops (an edge loop's halves, an inset) then apply
         r = v[topo.he_dest[topo.he_next]] - q
         turn = np.einsum("ij,ij->i", np.cross(q - p, r), normal[topo.he_face])
         he_bad |= turn < _CONVEX_SIN * np.linalg.norm(q - p, axis=1) * np.linalg.norm(r, axis=1)
