@@ -566,3 +566,31 @@ def test_only_cages_no_op_grows_from_are_fitted_with_free_corners(monkeypatch):
     assert levels[-1].control.vertices.tobytes() in free
     replayed = problem.control_mesh(genome)
     assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
+def test_a_winner_with_faces_other_than_quads_leaves_the_refinement_to_the_template(monkeypatch):
+    """A bevelled cube (two of its faces not quads: no split applies) as the search's winner: the refinement grows
+    the template's quads instead, once; a winner of quads is refined itself."""
+    import gsr_cad.reconstruct.surface as surface_module
+
+    real = surface_module.refine
+    calls = []
+
+    def logged(problem, genome, *args, **kwargs):
+        calls.append(tuple(genome))
+        return real(problem, genome, *args, **kwargs)
+
+    monkeypatch.setattr(surface_module, "refine", logged)
+    target = surface_target(limit_mesh(_blob(3), 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500, refine_max_faces=30, refine_fill=0.0),
+                             box_template(target))
+    bevelled = (Bevel(0, 0.2),)
+    assert np.any(problem.control_mesh(bevelled).face_sizes != 4)
+    grown = surface_module._refined(problem, bevelled, 1e-9, time.perf_counter() + 25, [], None, False)
+    assert calls == [()] and grown is not None
+    assert grown.levels[0]["vertices"] == 8 and grown.levels[-1]["vertices"] > 8
+    calls.clear()
+    inset = (Inset(0, 0.2),)
+    assert np.all(problem.control_mesh(inset).face_sizes == 4)
+    surface_module._refined(problem, inset, 1e-9, time.perf_counter() + 10, [], None, False)
+    assert calls[0] == inset
