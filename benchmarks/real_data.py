@@ -13,7 +13,9 @@ not 0; so are OpenSCAD's animation example (not a closed manifold) and assert ex
 A target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one
 closed cage webs between). Then issue 13's genus targets (``genus_creases.genus_targets``: built nut,
 torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
-run time. ``--jobs 2`` runs two targets at a time (one core each) and prints the same table in the same order.
+run time. ``--jobs 2`` runs two targets at a time (one core each, each refinement on one process) and prints the same table
+in the same order; ``--jobs 1`` (the default) runs one at a time, its refinement growing the placed template on a
+second core beside the search's winner (``--refine-workers``).
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,
@@ -46,6 +48,7 @@ from gsr_cad.atomic import write_text
 from gsr_cad.plots import run_length
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.second_path import refine_workers
 from gsr_cad.reconstruct.surface import reconstruct_surface, surface_metrics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -118,7 +121,8 @@ def _front_point(target, vertices: int, distance: float, with_baseline: bool) ->
 def _row(name: str, target, options: dict, args: argparse.Namespace) -> str:
     """One table row: gsr on ``target`` (with ``options``), the baseline at its vertex count and its front."""
     start = time.perf_counter()
-    result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds, **options)
+    result = reconstruct_surface(target, seed=args.seed, max_seconds=args.max_seconds,
+                                 refine_workers=args.refine_workers, **options)
     m = result.metrics
     pieces = parts(target)
     if pieces > 1:
@@ -151,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--only", nargs="*", help="target names to run (file names; genus targets by name)")
     ap.add_argument("--jobs", type=int, default=1, help="targets run at a time, in separate processes")
+    ap.add_argument("--refine-workers", type=int, choices=(0, 1, 2), default=None,
+                    help="processes each target's refinement grows on (default: 1 with --jobs above 1, so that "
+                         "targets run side by side do not share a CPU; else 0, two where two CPUs are free)")
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--no-front-baselines", dest="front_baselines", action="store_false",
                     help="skip the baseline at every front point (only at gsr's result)")
@@ -158,12 +165,15 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.jobs < 1:
         ap.error("--jobs must be at least 1")
+    if args.refine_workers is None:
+        args.refine_workers = 1 if args.jobs > 1 else 0
     if args.metrics is not None:
         args.metrics.mkdir(parents=True, exist_ok=True)
     header = ("| target | faces | gsr V | ops | data->fit mean / max | fit->data mean / max | s "
               "| baseline V | data->fit mean / max | fit->data mean / max | front (V: distance / baseline (its V)) |")
     lines = ["# Real-data surface benchmark", "", environment(), f"Load average at start: {load_average()}; "
-             f"{args.jobs} target(s) at a time.", "",
+             f"{args.jobs} target(s) at a time, each refined on "
+             f"{refine_workers(args.refine_workers)} process(es).", "",
              f"Search budget {args.max_seconds:g} s per target (`--max-seconds`), seed {args.seed}; baseline `-`: "
              "QuadriFlow gave no quad mesh near that vertex count.", "", header, "|" + "---|" * 11]
     with tempfile.TemporaryDirectory() as tmp:

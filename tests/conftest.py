@@ -11,6 +11,7 @@ import pytest
 
 from gsr_cad.cli import main
 from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.reconstruct import second_path
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLES = REPO / "samples"
@@ -21,6 +22,14 @@ class CliRun:
     code: int
     out: str
     err: str
+
+
+@pytest.fixture(autouse=True)
+def one_refinement_process(monkeypatch):
+    """Every test sees one CPU for ``refine_workers`` 0: the suite's xdist workers fill the machine's CPUs, and a
+    refinement's second process beside each would slow the timed runs. Tests of the second process ask for it
+    (``refine_workers=2``) or patch ``cpus`` again."""
+    monkeypatch.setattr(second_path, "cpus", lambda: 1)
 
 
 @pytest.fixture

@@ -594,3 +594,79 @@ def test_a_winner_with_faces_other_than_quads_leaves_the_refinement_to_the_templ
     assert np.all(problem.control_mesh(inset).face_sizes == 4)
     surface_module._refined(problem, inset, 1e-9, time.perf_counter() + 10, [], None, False)
     assert calls[0] == inset
+
+
+def test_auto_refine_workers_take_a_second_process_only_with_a_second_cpu_and_a_long_refinement(monkeypatch):
+    import multiprocessing
+
+    from gsr_cad.reconstruct import second_path
+
+    assert second_path.refine_workers(1, None) == 1 and second_path.refine_workers(2, 1.0) == 2
+    assert second_path.refine_workers(0, None) == 1  # this suite's one CPU (conftest)
+    monkeypatch.setattr(second_path, "cpus", lambda: 2)
+    assert second_path.refine_workers(0, None) == 2 and second_path.refine_workers(0, 300.0) == 2
+    assert second_path.refine_workers(0, 0.5 * second_path.MIN_SECONDS) == 1
+
+    class Daemon:
+        daemon = True
+
+    monkeypatch.setattr(multiprocessing, "current_process", lambda: Daemon())
+    assert second_path.refine_workers(0, None) == 1  # a daemon may not start children
+
+
+def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monkeypatch):
+    """``refine_workers`` 2, no time limit (both paths repeat): the template's path, grown in a worker process,
+    is the same as grown here; its cages are on the front unless dominated, and the final cage is the closer
+    path's last."""
+    import gsr_cad.reconstruct.surface as surface_module
+    from gsr_cad.reconstruct.second_path import TemplatePath
+
+    started = []
+
+    class Spied(TemplatePath):
+        def __init__(self, problem, *args):
+            started.append((problem, args))
+            super().__init__(problem, *args)
+
+    monkeypatch.setattr(surface_module, "TemplatePath", Spied)
+    target = surface_target(limit_mesh(_blob(3), 3), "blob")
+    config = SurfaceConfig(max_target_points=1500, refine_max_faces=30, refine_fill=0.0, refine_workers=2)
+    problem = SurfaceProblem(target, config, box_template(target))
+    winner = (Extrude(2, 0.3),)  # a protrusion the blob does not have
+    grown = surface_module._refined(problem, winner, 1e-9, None, [], None, False)
+    assert len(started) == 1 and grown is not None
+    grower, (goal, deadline, faces, _) = started[0]
+    assert goal == 1e-9 and deadline is None and faces == 30
+    seen: list[tuple[int, float]] = []
+    template_genome, template_levels = refine(grower, (), goal, None, faces,
+                                              lambda mesh, cost, history: seen.append((mesh.n_vertices, cost)))
+    winner_genome, winner_levels = refine(grower, winner, goal, None, faces)
+    for n, cost in seen:  # on the front, or dominated by a point of it
+        assert any(m <= n and c <= cost * (1 + 1e-9) for m, c, _ in grown.front)
+    assert template_levels[-1].cost < winner_levels[-1].cost  # the case this target makes: the template wins
+    assert grown.cost == pytest.approx(template_levels[-1].cost, rel=1e-9)
+    assert [row["vertices"] for row in grown.levels] == [lv.control.n_vertices for lv in template_levels]
+    replayed = problem.control_mesh(grown.genome)
+    assert np.abs(replayed.vertices - template_levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
+def test_a_stopped_second_path_returns_what_it_grew():
+    """A worker growing without a time or face limit ends soon after ``stop`` with its levels so far (Ctrl-C
+    reaches the parent, which stops it; the worker itself ignores SIGINT)."""
+    from gsr_cad.reconstruct.second_path import TemplatePath
+
+    target = surface_target(limit_mesh(_blob(1), 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500, refine_fill=0.0), box_template(target))
+    path = TemplatePath(problem, 1e-12, None, 100_000, None)
+    try:
+        time.sleep(8.0)
+        path.stop()
+        asked = time.perf_counter()
+        grown = path.result()
+        waited = time.perf_counter() - asked
+    finally:
+        path.close()
+    assert grown is not None
+    genome, levels, found = grown
+    assert levels[0].kind == "start" and len(found) >= 1
+    assert waited < 60.0 and levels[-1].control.n_faces < 100_000

@@ -125,7 +125,8 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
                   "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
                   "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
-                  "refine_seconds": (0, 2_592_000), "refine_fill": (0, 10), "refine_stall": (0, 1_000_000)}
+                  "refine_seconds": (0, 2_592_000), "refine_fill": (0, 10), "refine_stall": (0, 1_000_000),
+                  "refine_workers": (0, 2)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
 
 
@@ -389,6 +390,11 @@ class SurfaceConfig:
         "After the refinement, the front's cages between its levels (a prefix of a level's loops or insets, fitted "
         "in full, for --max-distance to pick from) get at most this share of its fit rounds (counted, so a seed "
         "repeats them); 0: none.")
+    refine_workers: int = _field(
+        0,
+        "Processes the refinement grows on: 2 grows the placed template in a second process beside the searched "
+        "winner, and the closer stands; 1 grows the template after the winner only when time is left; 0: 2 where "
+        "this process may use two or more CPUs, else 1.")
     population: int = _field(100, "Individuals kept from one generation to the next.")
     initial_population: int = _field(100, "Random genomes drawn in generation 0.")
     min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")
@@ -440,7 +446,8 @@ class SurfaceConfig:
         _check(self, ("levels", "max_control_faces", "max_target_points", "polish_rounds", "final_polish_rounds",
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
-                      "max_duplicates", "generations", "stall_generations", "refine_stall", "refine_max_faces"),
+                      "max_duplicates", "generations", "stall_generations", "refine_stall", "refine_max_faces",
+                      "refine_workers"),
                _whole(0),
                "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",

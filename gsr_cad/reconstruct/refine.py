@@ -421,12 +421,15 @@ class _Fitter:
     """The refinement's fits (adaptive, :meth:`~gsr_cad.reconstruct.surface.SurfaceProblem.fit`), timed: a fit
     whose first ``MIN_ROUNDS`` rounds are predicted to end after its deadline is skipped, and no round of one
     starts that would end after it. A cage's deadline leaves room for the work after its fit: its commit as a
-    level and ``tail(vertices)`` (the caller's work after the refinement)."""
+    level and ``tail(vertices)`` (the caller's work after the refinement). ``should_stop()`` turning true ends a
+    fit after its current round (Ctrl-C, or a second path told to stop: a large cage's fit takes tens of seconds)."""
 
-    def __init__(self, problem, deadline: float | None, tail: Callable[[int], float] | None = None):
+    def __init__(self, problem, deadline: float | None, tail: Callable[[int], float] | None = None,
+                 should_stop: Callable[[], bool] | None = None):
         self.problem = problem
         self.deadline = deadline
         self.tail = tail
+        self.should_stop = should_stop
         self.timing = Timing()
 
     def end(self, mesh: PolyMesh) -> float | None:
@@ -468,7 +471,8 @@ class _Fitter:
                  fairing: float | None = None, convex: bool = True) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
-                               deadline=self.end(mesh), fairing=fairing, convex=convex)
+                               deadline=self.end(mesh), fairing=fairing, convex=convex,
+                               should_stop=self.should_stop)
         done = getattr(self.problem, "fit_rounds", rounds)
         self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
         return out
@@ -504,7 +508,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     started = time.perf_counter()
     work = problem.evaluations
     out_of_time = _stop_when(deadline, should_stop)
-    _fit = _Fitter(problem, deadline, tail)
+    _fit = _Fitter(problem, deadline, tail, should_stop)
     genome = tuple(genome)
     fitted = problem.control_mesh(genome)
     base = tuple(op for op in genome if not isinstance(op, TranslateVertex))
@@ -660,7 +664,8 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         # front, and a user picking a simpler cage gets its structure's best fit, not a stage on the way;
         # their fits keep the final cage's tail free
         last = mesh.n_vertices
-        front_fit = _Fitter(problem, deadline, None if tail is None else lambda n: FRONT_TAIL * tail(max(n, last)))
+        front_fit = _Fitter(problem, deadline, None if tail is None else lambda n: FRONT_TAIL * tail(max(n, last)),
+                            should_stop)
         front_fit.timing = _fit.timing
         for stage in stages[:-1]:
             if out_of_time():
@@ -853,7 +858,8 @@ def snapped_within(problem, mesh: PolyMesh, cost: float, deadline: float | None,
                    should_stop: Callable[[], bool] | None = None) -> tuple[np.ndarray, float, tuple]:
     """:func:`snapped` for a cage fitted outside the refinement (the search's front cages), no fit round
     ending after ``deadline``."""
-    return snapped(problem, _Fitter(problem, deadline), _stop_when(deadline, should_stop), mesh, cost)
+    return snapped(problem, _Fitter(problem, deadline, None, should_stop), _stop_when(deadline, should_stop), mesh,
+                   cost)
 
 
 def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,

@@ -95,8 +95,9 @@ from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .placement import Placement, fit_template, place_cube
-from .refine import _inradius, _reach, refine, snapped_within
+from .refine import Level, _inradius, _reach, refine, snapped_within
 from .result import MAX_OPS, Result
+from .second_path import TemplatePath, refine_workers
 from .snap import snap_far_vertices
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
@@ -513,7 +514,8 @@ class SurfaceProblem:
 
     def fit(self, mesh: PolyMesh, rounds: int, min_gain: float | None = None,
             adaptive: bool = False, stiffness: float = 1.0, deadline: float | None = None,
-            fairing: float | None = None, convex: bool = True) -> tuple[np.ndarray, float]:
+            fairing: float | None = None, convex: bool = True,
+            should_stop: Callable[[], bool] | None = None) -> tuple[np.ndarray, float]:
         """Control vertices of ``mesh`` after up to ``rounds`` damped least-squares rounds (the best round's),
         and their symmetric point-to-surface cost (``rounds`` 0: the cost of ``mesh`` as it is).
 
@@ -541,7 +543,8 @@ class SurfaceProblem:
         ``deadline`` (a ``time.perf_counter()`` value): no round starts that would end after it (each taking as
         long as the rounds so far). ``self.fit_rounds``: the rounds the last fit started (for time predictions).
         ``convex`` False (a cage no op will be applied to): adaptive fits keep their margin on edge lengths, areas
-        and star shapes but let corners turn concave (:func:`_unsound_faces`).
+        and star shapes but let corners turn concave (:func:`_unsound_faces`). ``should_stop()`` turning true
+        ends the rounds as the deadline does.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
         layout = get_layout(mesh, self.config.boundary, self.config.limit_depth)
@@ -571,7 +574,8 @@ class SurfaceProblem:
                 best_v, best_cost = V, cost
             # no round starts that would end after the deadline (a round takes about as long as the last)
             if r == rounds + redone or cost == 0.0 or (deadline is not None and time.perf_counter()
-                                              + (time.perf_counter() - began) / max(r, 1) >= deadline):
+                                              + (time.perf_counter() - began) / max(r, 1) >= deadline) or (
+                    should_stop is not None and should_stop()):
                 break
             self.fit_rounds = r + 1
             if adaptive and saved is not None and cost >= saved[3]:
@@ -1503,6 +1507,8 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "metrics_seconds": metrics_seconds,
         "predicted_metrics_seconds": tail(control.n_vertices),
         "refinement": [] if growth is None else growth.levels,
+        "refined_from": None if growth is None or not growth.levels else growth.path,
+        "refine_workers": 0 if growth is None else growth.workers,
         "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
@@ -1679,6 +1685,8 @@ class Growth(NamedTuple):
     cost: float
     front: list[tuple[int, float, tuple]]
     levels: list[dict[str, Any]]
+    path: str = "winner"  # whose growth the genome is: the search's winner's, or the placed template's
+    workers: int = 1  # processes it grew on
 
 
 def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
@@ -1699,7 +1707,10 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
     the winner is within ``goal`` already and no tolerance was asked. With time left (``RESTART_SHARE`` when the
     winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too. A winner with
-    faces other than quads, where the template has only quads, is not refined: the template is, instead."""
+    faces other than quads, where the template has only quads, is not refined: the template is, instead. With two
+    processes (``config.refine_workers``) the template grows beside the winner in a second one
+    (:class:`~gsr_cad.reconstruct.second_path.TemplatePath`), both paths' cages are points of the front, and the
+    final cage is the simpler of those within ``goal``, else the closer."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -1715,10 +1726,12 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         return None
     found: dict[int, tuple[float, tuple]] = {}
 
-    def record(mesh: PolyMesh, cost: float, history: tuple) -> None:
-        n = mesh.n_vertices
+    def keep(n: int, cost: float, history: tuple) -> None:
         if n not in found or cost < found[n][0]:
             found[n] = (cost, history)
+
+    def record(mesh: PolyMesh, cost: float, history: tuple) -> None:
+        keep(mesh.n_vertices, cost, history)
 
     def level(mesh: PolyMesh, cost: float, history: tuple) -> None:
         record(mesh, cost, history)
@@ -1758,10 +1771,32 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # grows instead (LetterBlock's placed box refined alone, 300 s: 768 control vertices at 3.7e-3 of the
         # diagonal; the search's bevelled 31-vertex winner in a 300 s run: 356 at 9.0e-3)
         genome = ()
-    final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail, fills)
+    path = "winner" if genome else "template"
+    stopped = (lambda: False) if should_stop is None else should_stop
+    # with a second CPU the template grows beside the winner (module second_path); else after it, in time left
+    other = (TemplatePath(grower, goal, deadline, faces, tail) if genome and quads and not stopped()
+             and refine_workers(config.refine_workers, None if deadline is None
+                                else deadline - time.perf_counter()) > 1 else None)
+    try:
+        final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail, fills)
+        if other is not None and (stopped() or levels[-1].cost <= goal):
+            other.stop()  # a winner within the goal waits no longer: the template's cage so far is no simpler
+        grown = None if other is None else other.result(stopped)
+    finally:
+        if other is not None:
+            other.close()
+    if grown is not None:
+        for n, cost, history in grown[2]:
+            keep(n, cost, history)
+
+        def rank(lv: Level) -> tuple[bool, int, float]:  # within the goal the simpler, else the closer
+            return lv.cost > goal, (lv.control.n_vertices if lv.cost <= goal else 0), lv.cost
+
+        if rank(grown[1][-1]) < rank(levels[-1]):
+            final, levels, path = grown[0], grown[1], "template"
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
     last = levels[-1]
-    free = bool(genome) and quads and not (should_stop is not None and should_stop())
+    free = bool(genome) and quads and other is None and not stopped()
     if (free and last.cost > goal and 4 * last.control.n_faces <= faces  # stalled, not by the face budget
             and left > RESTART_SHARE):
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
@@ -1769,14 +1804,14 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
         again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail, fills)
         if more[-1].cost < last.cost:
-            final, levels = again, more
+            final, levels, path = again, more, "template"
     elif free and last.cost <= goal and left > REACHED_SHARE and last.control.n_faces > grower.template.n_faces:
         # the goal met early: the template grows too, up to a cage simpler than the winner's, and the simpler
         # of the two that meet the goal stands; both paths are points of the front (bone: the search's 24-vertex
         # winner reached 2e-3 of the diagonal at 258 vertices, the placed cube at 114)
         again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail, fills)
         if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
-            final, levels = again, more
+            final, levels, path = again, more, "template"
     # the kept path's first, all of them for at most config.refine_fill of the refinement's fit rounds (a run that met
     # its goal early does not spend the rest of its budget on them: bone 176 s -> 286 s with no limit); counted, not
     # timed, so that a seed repeats the front
@@ -1786,7 +1821,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds, "proposal": lv.kind}
             for lv in levels]
-    return Growth(final, levels[-1].cost, front(found), rows)
+    return Growth(final, levels[-1].cost, front(found), rows, path, 1 if other is None else 2)
 
 
 def template_from_config(config: dict[str, Any]) -> PolyMesh:
