@@ -56,6 +56,8 @@ def test_batch_on_two_workers_survives_a_bad_target_and_resumes(tmp_path):
             result = Result.load(tmp_path / "out" / r["out"].split("/")[-1])
             assert float(r["data_to_fit_mean"]) > 0 and int(r["controls"]) >= 4
             assert int(r["ops"]) == len(result.genome)
+            if r["kind"] == "surface":  # the cluster's workers share the CPUs: one refinement process each
+                assert result.config["refine_workers"] == 1
     assert sum(line.startswith("[") for line in first.out.splitlines()) == 6
     assert "batch: 6/6 targets finished, 1 failed" in first.out
     md = (tmp_path / "out" / "summary.md").read_text()

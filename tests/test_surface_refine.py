@@ -12,7 +12,7 @@ from gsr_cad.geometry.isomorphism import connectivity_hash
 from gsr_cad.geometry.limit_surface import LimitSurface
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
-from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset
+from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset, TranslateVertex
 from gsr_cad.ops.mesh_conn import mesh_view
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
@@ -632,6 +632,9 @@ def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monke
     target = surface_target(limit_mesh(_blob(3), 3), "blob")
     config = SurfaceConfig(max_target_points=1500, refine_max_faces=30, refine_fill=0.0, refine_workers=2)
     problem = SurfaceProblem(target, config, box_template(target))
+    moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: no second path to grow
+    assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 3, [], None, False) is not None
+    assert started == []
     winner = (Extrude(2, 0.3),)  # a protrusion the blob does not have
     grown = surface_module._refined(problem, winner, 1e-9, None, [], None, False)
     assert len(started) == 1 and grown is not None

@@ -4,7 +4,8 @@ Each target runs as its own ``gsr curve`` or ``gsr surface`` process (chosen fro
 3-column data are surfaces, 2-column data curves) on a cluster worker, writing ``DIR/<name>/``; a failing
 target fails alone. Without ``--scheduler`` a LocalCluster of ``--workers`` single-threaded processes runs
 here; with it, the workers of that cluster (which must see the same paths). One line is printed per target
-as it finishes, with the overall count; ``DIR/summary.csv`` and ``DIR/summary.md`` (target, kind, distances
+as it finishes, with the overall count (a surface's refinement runs on one process, as the cluster's workers share
+the CPUs, unless ``--set refine_workers=...`` says otherwise); ``DIR/summary.csv`` and ``DIR/summary.md`` (target, kind, distances
 both ways, controls, ops, seconds, status) are rewritten after each. Running the same batch again skips the
 targets whose ``result.json`` is complete (a stopped batch resumes); Ctrl-C stops the batch, keeping what
 is done.
@@ -191,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
     if args.seed is not None:
         common += ["--seed", str(args.seed)]
     flags = {kind: common + _settings(args.set, kind) for kind in ("curve", "surface")}
+    if "--refine-workers" not in flags["surface"]:  # the cluster's workers share the CPUs: one process each
+        flags["surface"] += ["--refine-workers", "1"]
     kinds = []
     for path in args.inputs:
         open_input(path, "target file")

@@ -1774,7 +1774,9 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     path = "winner" if genome else "template"
     stopped = (lambda: False) if should_stop is None else should_stop
     # with a second CPU the template grows beside the winner (module second_path); else after it, in time left
-    other = (TemplatePath(grower, goal, deadline, faces, tail) if genome and quads and not stopped()
+    # (a winner of vertex moves only grows from the template's own structure: no second path)
+    shaped = any(not isinstance(op, TranslateVertex) for op in genome)
+    other = (TemplatePath(grower, goal, deadline, faces, tail) if shaped and quads and not stopped()
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
     try:
