@@ -13,9 +13,9 @@ not 0; so are OpenSCAD's animation example (not a closed manifold) and assert ex
 A target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one
 closed cage webs between). Then issue 13's genus targets (``genus_creases.genus_targets``: built nut,
 torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
-run time. ``--jobs 2`` runs two targets at a time (one core each, each refinement on one process) and prints the same table
-in the same order; ``--jobs 1`` (the default) runs one at a time, its refinement growing the placed template on a
-second core beside the search's winner (``--refine-workers``).
+run time. ``--jobs 2`` runs two targets at a time (one core each, each refinement on one process) and prints the
+same table in the same order; ``--jobs 1`` (the default) runs one at a time, its refinement growing the placed
+template on a second core beside the search's winner (``--refine-workers``).
 
 Columns: target, its faces, gsr's control vertices and ops, data->fit and fit->data mean/max (fractions
 of the bounding-box diagonal, on the exact limit surface, see ``gsr_cad.reconstruct.surface``), seconds,

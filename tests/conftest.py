@@ -4,6 +4,7 @@ Catmull-Clark (through lagrange) as a reference. Test modules import the helpers
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +25,10 @@ class CliRun:
     err: str
 
 
-@pytest.fixture(autouse=True)
-def one_refinement_process(monkeypatch):
-    """Every test sees one CPU for ``refine_workers`` 0: the suite's xdist workers fill the machine's CPUs, and a
-    refinement's second process beside each would slow the timed runs. Tests of the second process ask for it
-    (``refine_workers=2``) or patch ``cpus`` again."""
-    monkeypatch.setattr(second_path, "cpus", lambda: 1)
+os.environ[second_path.ENV] = "1"
+"""``refine_workers`` 0 is one process here and in the runs the tests start: the suite's xdist workers fill the
+machine's CPUs, and a refinement's second process beside each would slow them. Tests of the second process ask for
+it (``refine_workers=2``) or clear the variable."""
 
 
 @pytest.fixture

@@ -602,7 +602,12 @@ def test_auto_refine_workers_take_a_second_process_only_with_a_second_cpu_and_a_
     from gsr_cad.reconstruct import second_path
 
     assert second_path.refine_workers(1, None) == 1 and second_path.refine_workers(2, 1.0) == 2
-    assert second_path.refine_workers(0, None) == 1  # this suite's one CPU (conftest)
+    assert second_path.refine_workers(0, None) == 1  # this suite's setting (conftest)
+    monkeypatch.setenv(second_path.ENV, "2")
+    assert second_path.refine_workers(0, 1.0) == 2
+    monkeypatch.delenv(second_path.ENV)
+    monkeypatch.setattr(second_path, "cpus", lambda: 1)
+    assert second_path.refine_workers(0, None) == 1
     monkeypatch.setattr(second_path, "cpus", lambda: 2)
     assert second_path.refine_workers(0, None) == 2 and second_path.refine_workers(0, 300.0) == 2
     assert second_path.refine_workers(0, 0.5 * second_path.MIN_SECONDS) == 1
@@ -630,7 +635,7 @@ def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monke
 
     monkeypatch.setattr(surface_module, "TemplatePath", Spied)
     target = surface_target(limit_mesh(_blob(3), 3), "blob")
-    config = SurfaceConfig(max_target_points=1500, refine_max_faces=30, refine_fill=0.0, refine_workers=2)
+    config = SurfaceConfig(max_target_points=1000, refine_max_faces=24, refine_fill=0.0, refine_workers=2)
     problem = SurfaceProblem(target, config, box_template(target))
     moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: no second path to grow
     assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 3, [], None, False) is not None
@@ -639,7 +644,7 @@ def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monke
     grown = surface_module._refined(problem, winner, 1e-9, None, [], None, False)
     assert len(started) == 1 and grown is not None
     grower, (goal, deadline, faces, _) = started[0]
-    assert goal == 1e-9 and deadline is None and faces == 30
+    assert goal == 1e-9 and deadline is None and faces == 24
     seen: list[tuple[int, float]] = []
     template_genome, template_levels = refine(grower, (), goal, None, faces,
                                               lambda mesh, cost, history: seen.append((mesh.n_vertices, cost)))
@@ -673,3 +678,22 @@ def test_a_stopped_second_path_returns_what_it_grew():
     genome, levels, found = grown
     assert levels[0].kind == "start" and len(found) >= 1
     assert waited < 60.0 and levels[-1].control.n_faces < 100_000
+
+
+def test_a_second_path_within_its_goal_says_so_and_one_short_of_it_does_not():
+    """``met()``: the worker is done and its last cage is within the goal (the winner's growth then ends)."""
+    from gsr_cad.reconstruct.second_path import TemplatePath
+
+    target = surface_target(limit_mesh(_blob(2), 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500, refine_fill=0.0), box_template(target))
+    for goal, within in ((1.0, True), (1e-12, False)):
+        path = TemplatePath(problem, goal, time.perf_counter() + 20, 100_000, None)
+        try:
+            until = time.perf_counter() + 120
+            while not path.met() and time.perf_counter() < until and (within or not path._future.done()):
+                time.sleep(0.2)
+            assert path.met() is within
+            grown = path.result()
+        finally:
+            path.close()
+        assert grown is not None and (grown[1][-1].cost <= goal) is within

@@ -5,9 +5,9 @@ Each target runs as its own ``gsr curve`` or ``gsr surface`` process (chosen fro
 target fails alone. Without ``--scheduler`` a LocalCluster of ``--workers`` single-threaded processes runs
 here; with it, the workers of that cluster (which must see the same paths). One line is printed per target
 as it finishes, with the overall count (a surface's refinement runs on one process, as the cluster's workers share
-the CPUs, unless ``--set refine_workers=...`` says otherwise); ``DIR/summary.csv`` and ``DIR/summary.md`` (target, kind, distances
-both ways, controls, ops, seconds, status) are rewritten after each. Running the same batch again skips the
-targets whose ``result.json`` is complete (a stopped batch resumes); Ctrl-C stops the batch, keeping what
+the CPUs, unless ``--set refine_workers=...`` says otherwise); ``DIR/summary.csv`` and ``DIR/summary.md`` (target,
+kind, distances both ways, controls, ops, seconds, status) are rewritten after each. Running the same batch again
+skips the targets whose ``result.json`` is complete (a stopped batch resumes); Ctrl-C stops the batch, keeping what
 is done.
 """
 

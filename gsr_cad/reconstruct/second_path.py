@@ -38,12 +38,19 @@ def cpus() -> int:
         return os.cpu_count() or 1
 
 
+ENV = "GSR_REFINE_WORKERS"
+"""Environment variable that sets what ``refine_workers`` 0 means (1 or 2), for every run started with it (a
+shared machine, or a test suite whose workers already fill the CPUs)."""
+
+
 def refine_workers(setting: int, seconds: float | None = None) -> int:
-    """The processes the refinement grows on for the config's ``refine_workers``: 0 (auto) is 2 where this
-    process may use two or more CPUs and start children, and the refinement may take at least
-    :data:`MIN_SECONDS` (``seconds``; None: no limit), else 1."""
+    """The processes the refinement grows on for the config's ``refine_workers``: 0 (auto) is :data:`ENV` when
+    set to 1 or 2, else 2 where this process may use two or more CPUs and start children, and the refinement may
+    take at least :data:`MIN_SECONDS` (``seconds``; None: no limit), else 1."""
     if setting:
         return int(setting)
+    if os.environ.get(ENV, "").strip() in ("1", "2"):
+        return int(os.environ[ENV])
     long = seconds is None or seconds >= MIN_SECONDS
     return 2 if long and cpus() >= 2 and not multiprocessing.current_process().daemon else 1
 
@@ -85,8 +92,18 @@ class TemplatePath:
         self._stop = context.Event()
         self._pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=context, initializer=_install,
                                                             initargs=(self._stop,))
+        self._goal = goal
         wall = None if deadline is None else time.time() + (deadline - time.perf_counter())
         self._future = self._pool.submit(_grow, problem, goal, wall, max_faces, tail)
+
+    def met(self) -> bool:
+        """Whether the worker is done and its last cage is within the goal (the winner's growth then ends: within
+        the goal, the template's cage is the one the pick prefers unless the winner's is simpler, and a winner
+        not there yet only grows)."""
+        if not self._future.done() or self._future.exception() is not None:
+            return False
+        levels = self._future.result()[1]
+        return bool(levels) and levels[-1].cost <= self._goal
 
     def stop(self) -> None:
         """Ask the worker to end its growth now (it returns what it has)."""

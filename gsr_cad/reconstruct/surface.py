@@ -1780,7 +1780,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
     try:
-        final, levels = refine(grower, genome, goal, deadline, faces, level, should_stop, tail, fills)
+        final, levels = refine(grower, genome, goal, deadline, faces, level,
+                               stopped if other is None else lambda: stopped() or other.met(), tail, fills)
         if other is not None and (stopped() or levels[-1].cost <= goal):
             other.stop()  # a winner within the goal waits no longer: the template's cage so far is no simpler
         grown = None if other is None else other.result(stopped)
