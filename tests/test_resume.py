@@ -21,7 +21,8 @@ from gsr_cad.reconstruct.surface import reconstruct_surface
 CURVE = dict(generations=12, stall_generations=0, population=20, initial_population=40)
 SURFACE = dict(generations=3, population=6, initial_population=6, n_parents=4, max_children=2, n_perturb=2,
                n_newcomers=2, final_polish_rounds=2, polish_rounds=1, simplify_history=False,
-               op_kinds="VELBFS")  # no inset: the protrusion start would solve inset_extrude at generation 0
+               op_kinds="VELBFS",  # no inset: the protrusion start would solve inset_extrude at generation 0
+               refine_max_faces=24, refine_seconds=0)  # a short refinement, bounded by faces, not seconds
 
 
 def _stop_after(generation: int):

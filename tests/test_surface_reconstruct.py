@@ -90,21 +90,22 @@ def test_extended_is_reconstructed_to_the_papers_accuracy(kind, tmp_path):
 
 
 def test_same_seed_same_result_serial_or_process_pool():
-    """Same seed, same search, polish and refinement (to a few levels: the cage is bounded so the three runs
-    stay short), whether the genomes are evaluated here or in a process pool."""
+    """Same seed, same search, polish and refinement (to a level or two: the cage is bounded so the runs stay
+    short), whether the genomes are evaluated here or in a process pool: the second run, in a pool, repeats the
+    first."""
     s = random_ops_sample(3)
     target = surface_target(s.target)
-    small = dict(SMALL, refine_max_faces=120)
+    small = dict(SMALL, refine_max_faces=48)
     a = reconstruct_surface(target, seed=7, **small)
-    assert a.metrics["refinement"], "the refinement ran"
-    b = reconstruct_surface(target, seed=7, **small)
+    assert len(a.metrics["refinement"]) >= 2, "the refinement grew the cage"
+
     def costs(result):
         return [(h["best_fitness"], h["mean_fitness"]) for h in result.history]
 
     def front(result):  # the front's cages between the refinement's levels too (bounded by a count, not seconds)
         return [(p["vertices"], p["distance"]) for p in result.metrics["front"]]
 
-    assert a.genome == b.genome and costs(a) == costs(b) and front(a) == front(b)
+    assert len(front(a)) >= 3
     with ProcessPoolEvaluator(max_workers=2) as pool:
         c = reconstruct_surface(target, seed=7, evaluator=pool, **small)
     assert c.genome == a.genome and costs(c) == costs(a) and c.metrics["fitness"] == a.metrics["fitness"]

@@ -260,7 +260,9 @@ def test_the_limit_cage_lies_on_the_limit_surface():
 
 def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_distance_stops_it():
     target = surface_target(limit_mesh(_blob(2), 3), "blob")
-    result = reconstruct_surface(target, seed=1, max_seconds=120, refine_until=5e-4, **_SMALL_RUN)
+    # bounded by faces, not seconds, so that the second run repeats the first's search and levels under any load
+    bounded = dict(_SMALL_RUN, refine_seconds=0, refine_max_faces=120)
+    result = reconstruct_surface(target, seed=1, refine_until=5e-4, **bounded)
     m = result.metrics
     assert m["refinement"] and m["refinement"][-1]["distance"] < m["refinement"][0]["distance"]
     points = m["front"]
@@ -271,7 +273,7 @@ def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_dist
     assert levels & {p["vertices"] for p in points} == levels or len(points) >= 2
     assert m["n_control_vertices"] == m["refinement"][-1]["vertices"]
     goal = m["refinement"][1]["distance"] * 1.001
-    picked = reconstruct_surface(target, seed=1, max_seconds=120, max_distance=goal, **_SMALL_RUN)
+    picked = reconstruct_surface(target, seed=1, max_distance=goal, **bounded)
     assert picked.metrics["tolerance_met"] is True
     assert picked.metrics["n_control_vertices"] <= m["refinement"][1]["vertices"]
 

@@ -22,10 +22,9 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.special import fdtrc  # the F distribution's survival function (scipy.stats takes 0.5 s to import)
 
 from ..geometry import bspline
-from scipy import stats
-
 from ..geometry.curvefit import CurveFit, fit_curve, minimax_refine, tangent_refine, warp_basis, warped_fit
 from ..geometry.distance import curve_to_points, data_model, spline_foot_points
 from .config import CurveConfig
@@ -316,7 +315,7 @@ class CurveModel:
         free = min((self._free_ends(pts, f) for f in starts), key=lambda f: f.rms)
         sse_w, sse_f = float(np.sum(warped.distances ** 2)), float(np.sum(free.distances ** 2))
         f_stat = max(0.0, (sse_w - sse_f) / df1) / max(sse_f / df2, 1e-300)
-        p_value = float(stats.f.sf(f_stat, df1, df2))
+        p_value = float(fdtrc(df1, df2, f_stat))
         accepted = p_value >= SAMPLING_ALPHA
         chosen = warped if accepted else self._free_ends(pts, base)
         return SamplingChoice(chosen, n if accepted else n_free, n_free, terms, f_stat, p_value, accepted)
