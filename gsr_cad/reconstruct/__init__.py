@@ -1,13 +1,23 @@
-"""Reconstruction problems and the public API (re-exported by :mod:`gsr_cad`)."""
+"""Reconstruction problems and the public API (re-exported by :mod:`gsr_cad`). Names load on first use, so that
+a command imports only its own problem (``gsr surface`` never imports the curve code, nor ``gsr curve`` the
+surface code: each costs a few tenths of a second at every start)."""
 
-from .config import CurveConfig, SurfaceConfig
-from .curve import reconstruct_curve
-from .export import export, validate
-from .inputs import curve_target, load_curve_points, surface_target
-from .meshio import load_mesh, save_mesh, save_obj
-from .result import CurveResult, Result, SurfaceResult
-from .surface import reconstruct_surface
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_WHERE = {"CurveConfig": "config", "SurfaceConfig": "config", "reconstruct_curve": "curve",
+          "reconstruct_surface": "surface", "export": "export", "validate": "export", "curve_target": "inputs",
+          "load_curve_points": "inputs", "surface_target": "inputs", "load_mesh": "meshio", "save_mesh": "meshio",
+          "save_obj": "meshio", "Result": "result", "CurveResult": "result", "SurfaceResult": "result"}
 
 __all__ = ["CurveConfig", "SurfaceConfig", "reconstruct_curve", "reconstruct_surface", "Result", "CurveResult",
            "SurfaceResult", "export", "validate", "curve_target",
            "load_curve_points", "surface_target", "load_mesh", "save_mesh", "save_obj"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
