@@ -136,3 +136,27 @@ def test_the_architecture_scan_sees_an_exporter_importing_a_sibling(tmp_path):
     bad.write_text("from .freecad import freecad_read\nfrom . import model\nimport gsr_cad.exporters.blender\n")
     assert {"freecad", "model", "blender"} <= {n.split(".")[2] for n in _imports(bad, tmp_path)
                                                if n.startswith("gsr_cad.exporters.")}
+
+
+@pytest.mark.parametrize("command, absent", [("curve", "gsr_cad.reconstruct.surface"),
+                                             ("surface", "gsr_cad.reconstruct.curve")])
+def test_a_subcommand_imports_only_its_own_problem(tmp_path, command, absent):
+    """``gsr curve`` starts without the surface code and ``gsr surface`` without the curve code (each costs a
+    few tenths of a second at every start); ``--help`` still lists every subcommand."""
+    code = (f"import sys; from gsr_cad.cli import SUBCOMMANDS, build_parser; build_parser([{command!r}]); "
+            f"assert {absent!r} not in sys.modules, 'imported'; "
+            "text = build_parser().format_help(); assert all(name in text for name in SUBCOMMANDS), text")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_every_public_name_is_the_function_or_class_after_its_modules_are_imported():
+    """The lazily loaded API names are never shadowed by a submodule of the same name (``export``)."""
+    code = ("import importlib, types, gsr_cad, gsr_cad.reconstruct as r\n"
+            "for m in ('config', 'curve', 'surface', 'export', 'inputs', 'meshio', 'result'):\n"
+            "    importlib.import_module('gsr_cad.reconstruct.' + m)\n"
+            "bad = [n for n in r.__all__ if isinstance(getattr(r, n), types.ModuleType)]\n"
+            "bad += [n for n in gsr_cad._API if isinstance(getattr(gsr_cad, n), types.ModuleType)]\n"
+            "assert not bad, bad\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]

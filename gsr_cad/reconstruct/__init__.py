@@ -7,8 +7,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from .export import export, validate  # bound here: a lazy ``export`` would be shadowed by its module's own name
+
 _WHERE = {"CurveConfig": "config", "SurfaceConfig": "config", "reconstruct_curve": "curve",
-          "reconstruct_surface": "surface", "export": "export", "validate": "export", "curve_target": "inputs",
+          "reconstruct_surface": "surface", "curve_target": "inputs",
           "load_curve_points": "inputs", "surface_target": "inputs", "load_mesh": "meshio", "save_mesh": "meshio",
           "save_obj": "meshio", "Result": "result", "CurveResult": "result", "SurfaceResult": "result"}
 
