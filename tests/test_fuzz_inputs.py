@@ -2,8 +2,9 @@
 
 A fixed-seed corpus (about 150 cases) of hand-picked malformations in every category of issue 14 plus
 random mutations (byte flips, truncations, extreme tokens) of valid CSV, NPY, OBJ, OFF, PLY, STL, XYZ and
-result.json files. Each case runs ``python -m gsr_cad`` in a subprocess with a timeout, in its own
-directory. Bad input must give exit 2 with exactly one ``error:`` line; inputs that may be fine (random
+result.json files. Each case runs the CLI's ``main`` in a process of its own with a timeout, in its own
+directory (forked from one that has imported gsr_cad: ``cli_subprocess.gsr_forked``; the other tests here run
+``python -m gsr_cad`` itself). Bad input must give exit 2 with exactly one ``error:`` line; inputs that may be fine (random
 mutations) must either succeed with nothing but ``warning:`` lines on stderr, or fail that same clean way.
 """
 
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_subprocess import TINY_CURVE, TINY_SURFACE, assert_clean, assert_clean_error, gsr, gsr_as_nobody
+from cli_subprocess import TINY_CURVE, TINY_SURFACE, assert_clean, assert_clean_error, gsr, gsr_as_nobody, gsr_forked
 
 from gsr_cad.reconstruct.meshio import obj_text
 from gsr_cad.reconstruct.samples import get_sample
@@ -479,7 +480,7 @@ for i, blob in enumerate(_mutations(_rng, json.dumps(_result_json()).encode(), 6
 @pytest.mark.parametrize("name,expect,write", CASES, ids=[c[0] for c in CASES])
 def test_fuzz(tmp_path, name, expect, write):
     argv = write(tmp_path)
-    run = gsr(argv, tmp_path, timeout=120)
+    run = gsr_forked(argv, tmp_path, timeout=120)
     if expect == ERROR:
         assert_clean_error(run)
     elif expect == OK:
