@@ -1,11 +1,12 @@
 """Fuzz the real CLI with malformed inputs and absurd flags: no traceback, no hang, no numpy warning.
 
-A fixed-seed corpus (about 150 cases) of hand-picked malformations in every category of issue 14 plus
+A fixed-seed corpus (about 220 cases) of hand-picked malformations in every category of issue 14 plus
 random mutations (byte flips, truncations, extreme tokens) of valid CSV, NPY, OBJ, OFF, PLY, STL, XYZ and
 result.json files. Each case runs the CLI's ``main`` in a process of its own with a timeout, in its own
 directory (forked from one that has imported gsr_cad: ``cli_subprocess.gsr_forked``; the other tests here run
-``python -m gsr_cad`` itself). Bad input must give exit 2 with exactly one ``error:`` line; inputs that may be fine (random
-mutations) must either succeed with nothing but ``warning:`` lines on stderr, or fail that same clean way.
+``python -m gsr_cad`` itself). Bad input must give exit 2 with exactly one ``error:`` line; inputs that may be
+fine (random mutations) must either succeed with nothing but ``warning:`` lines on stderr, or fail that same
+clean way.
 """
 
 from __future__ import annotations
