@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import dataclasses
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -155,6 +158,15 @@ class _ForkServer:
         self.proc = subprocess.Popen([sys.executable, "-c", _FORK_SERVER], env=env(), stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, text=True, bufsize=1)
         self.folder = Path(tempfile.mkdtemp(prefix="gsr-forked-"))  # the runs' stdout and stderr, outside their cwd
+        atexit.register(self.close)
+
+    def close(self) -> None:
+        """End the server (its input closed, it leaves its loop) and remove its folder."""
+        with contextlib.suppress(OSError, ValueError, subprocess.TimeoutExpired):
+            if self.proc.stdin is not None:
+                self.proc.stdin.close()
+            self.proc.wait(timeout=10)
+        shutil.rmtree(self.folder, ignore_errors=True)
 
     def run(self, argv: Sequence[str], cwd: Path, timeout: float) -> Run:
         started = time.monotonic()
