@@ -570,6 +570,27 @@ def test_only_cages_no_op_grows_from_are_fitted_with_free_corners(monkeypatch):
     assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
 
 
+def test_free_corners_lets_every_fit_turn_corners_concave_and_the_path_still_grows_and_replays(monkeypatch):
+    """``refine(..., free_corners=True)`` (the second path's strategy beside a winner of vertex moves only): no fit
+    keeps corners convex, the cage still grows level by level, and its genome replays to the last cage."""
+    target = surface_target(limit_mesh(_blob(0), 3), "blob0")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1000, refine_fill=0.0), box_template(target))
+    problem.max_faces = 24
+    flags: list[bool] = []
+    fit = problem.fit
+
+    def logged(mesh, rounds, *args, convex=True, **kwargs):
+        flags.append(convex)
+        return fit(mesh, rounds, *args, convex=convex, **kwargs)
+
+    monkeypatch.setattr(problem, "fit", logged)
+    genome, levels = refine(problem, (), 1e-9, None, 24, free_corners=True)
+    assert len(flags) > 10 and not any(flags)
+    assert levels[-1].control.n_vertices > levels[0].control.n_vertices and levels[-1].cost < levels[0].cost
+    replayed = problem.control_mesh(genome)
+    assert np.abs(replayed.vertices - levels[-1].control.vertices).max() <= 1e-9 * target.diagonal
+
+
 def test_a_winner_with_faces_other_than_quads_leaves_the_refinement_to_the_template(monkeypatch):
     """A bevelled cube (two of its faces not quads: no split applies) as the search's winner: the refinement grows
     the template's quads instead, once; a winner of quads is refined itself."""
@@ -624,28 +645,28 @@ def test_auto_refine_workers_take_a_second_process_only_with_a_second_cpu_and_a_
 def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monkeypatch):
     """``refine_workers`` 2, no time limit (both paths repeat): the template's path, grown in a worker process,
     is the same as grown here; its cages are on the front unless dominated, and the final cage is the closer
-    path's last."""
+    path's last. Beside a winner of vertex moves only, the template grows with free corners."""
     import gsr_cad.reconstruct.surface as surface_module
     from gsr_cad.reconstruct.second_path import TemplatePath
 
     started = []
 
     class Spied(TemplatePath):
-        def __init__(self, problem, *args):
-            started.append((problem, args))
-            super().__init__(problem, *args)
+        def __init__(self, problem, *args, **kwargs):
+            started.append((problem, args, kwargs))
+            super().__init__(problem, *args, **kwargs)
 
     monkeypatch.setattr(surface_module, "TemplatePath", Spied)
     target = surface_target(limit_mesh(_blob(3), 3), "blob")
     config = SurfaceConfig(max_target_points=1000, refine_max_faces=24, refine_fill=0.0, refine_workers=2)
     problem = SurfaceProblem(target, config, box_template(target))
-    moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: no second path to grow
-    assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 3, [], None, False) is not None
-    assert started == []
+    moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: its second path, free corners
+    assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 5, [], None, False) is not None
+    assert len(started) == 1 and started[0][2] == {"free_corners": True}
     winner = (Extrude(2, 0.3),)  # a protrusion the blob does not have
     grown = surface_module._refined(problem, winner, 1e-9, None, [], None, False)
-    assert len(started) == 1 and grown is not None
-    grower, (goal, deadline, faces, _) = started[0]
+    assert len(started) == 2 and grown is not None and started[1][2] == {"free_corners": False}
+    grower, (goal, deadline, faces, _), _ = started[1]
     assert goal == 1e-9 and deadline is None and faces == 24
     seen: list[tuple[int, float]] = []
     template_genome, template_levels = refine(grower, (), goal, None, faces,

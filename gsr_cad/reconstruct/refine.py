@@ -425,11 +425,12 @@ class _Fitter:
     fit after its current round (Ctrl-C, or a second path told to stop: a large cage's fit takes tens of seconds)."""
 
     def __init__(self, problem, deadline: float | None, tail: Callable[[int], float] | None = None,
-                 should_stop: Callable[[], bool] | None = None):
+                 should_stop: Callable[[], bool] | None = None, free_corners: bool = False):
         self.problem = problem
         self.deadline = deadline
         self.tail = tail
         self.should_stop = should_stop
+        self.free_corners = free_corners  # every fit lets corners turn concave (``convex`` is then ignored)
         self.timing = Timing()
 
     def end(self, mesh: PolyMesh) -> float | None:
@@ -471,7 +472,7 @@ class _Fitter:
                  fairing: float | None = None, convex: bool = True) -> tuple[np.ndarray, float]:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
-                               deadline=self.end(mesh), fairing=fairing, convex=convex,
+                               deadline=self.end(mesh), fairing=fairing, convex=convex and not self.free_corners,
                                should_stop=self.should_stop)
         done = getattr(self.problem, "fit_rounds", rounds)
         self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
@@ -489,7 +490,8 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
            record: Callable[[PolyMesh, float, tuple], None] | None = None,
            should_stop: Callable[[], bool] | None = None,
            tail: Callable[[int], float] | None = None,
-           deferred: list[tuple[list[Level], Callable[[int], None]]] | None = None) -> tuple[tuple, list[Level]]:
+           deferred: list[tuple[list[Level], Callable[[int], None]]] | None = None,
+           free_corners: bool = False) -> tuple[tuple, list[Level]]:
     """Grow ``genome``'s cage on ``problem``'s target until its distance is at most ``goal`` (module
     docstring). ``deadline``: a ``time.perf_counter()`` value (None: no time limit); ``max_faces``: the
     largest cage. ``record(control, cost, genome)`` is called at every level with a genome that replays
@@ -499,7 +501,9 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     (:func:`_fill_front`) are filled in the time left, for at most ``config.refine_fill`` of the refinement's
     work (:attr:`~gsr_cad.reconstruct.surface.SurfaceProblem.evaluations`, which a seed repeats, where seconds
     would not), or, with ``deferred``, appended there as ``(levels, a call that fills them for at most the
-    evaluations given)`` for the caller to run after its other refinements.
+    evaluations given)`` for the caller to run after its other refinements. ``free_corners``: every fit lets
+    corners turn concave, not only those of cages no op grows from (another strategy, for a second path: closer
+    on some chains, bone and example007's, behind on others, airplane's).
 
     The genome of a level is the structural ops (the search's, then the refinement's, replayed on the
     template's own geometry, where they apply cleanly) followed by one move per control vertex to the
@@ -508,7 +512,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     started = time.perf_counter()
     work = problem.evaluations
     out_of_time = _stop_when(deadline, should_stop)
-    _fit = _Fitter(problem, deadline, tail, should_stop)
+    _fit = _Fitter(problem, deadline, tail, should_stop, free_corners)
     genome = tuple(genome)
     fitted = problem.control_mesh(genome)
     base = tuple(op for op in genome if not isinstance(op, TranslateVertex))
@@ -665,7 +669,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         # their fits keep the final cage's tail free
         last = mesh.n_vertices
         front_fit = _Fitter(problem, deadline, None if tail is None else lambda n: FRONT_TAIL * tail(max(n, last)),
-                            should_stop)
+                            should_stop, free_corners)
         front_fit.timing = _fit.timing
         for stage in stages[:-1]:
             if out_of_time():

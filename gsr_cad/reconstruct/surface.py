@@ -1709,8 +1709,9 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too. A winner with
     faces other than quads, where the template has only quads, is not refined: the template is, instead. With two
     processes (``config.refine_workers``) the template grows beside the winner in a second one
-    (:class:`~gsr_cad.reconstruct.second_path.TemplatePath`), both paths' cages are points of the front, and the
-    final cage is the simpler of those within ``goal``, else the closer."""
+    (:class:`~gsr_cad.reconstruct.second_path.TemplatePath`; with every fit's corners free beside a winner of the
+    template's own structure), both paths' cages are points of the front, and the final cage is the simpler of
+    those within ``goal``, else the closer."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -1773,10 +1774,11 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         genome = ()
     path = "winner" if genome else "template"
     stopped = (lambda: False) if should_stop is None else should_stop
-    # with a second CPU the template grows beside the winner (module second_path); else after it, in time left
-    # (a winner of vertex moves only grows from the template's own structure: no second path)
+    # with a second CPU the template grows beside the winner (module second_path); else after it, in time left.
+    # A winner of vertex moves only grows from the template's own structure: beside it, the template grows with
+    # every fit's corners free (another strategy, closer on some chains, behind on others)
     shaped = any(not isinstance(op, TranslateVertex) for op in genome)
-    other = (TemplatePath(grower, goal, deadline, faces, tail) if shaped and quads and not stopped()
+    other = (TemplatePath(grower, goal, deadline, faces, tail, free_corners=not shaped) if quads and not stopped()
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
     try:
@@ -1796,7 +1798,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
             return lv.cost > goal, (lv.control.n_vertices if lv.cost <= goal else 0), lv.cost
 
         if rank(grown[1][-1]) < rank(levels[-1]):
-            final, levels, path = grown[0], grown[1], "template"
+            final, levels, path = grown[0], grown[1], "template" if shaped else "template, free corners"
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
     last = levels[-1]
     free = bool(genome) and quads and other is None and not stopped()
