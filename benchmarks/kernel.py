@@ -216,21 +216,32 @@ def bench_ops(quick: bool) -> list[Row]:
     ]
 
 
+def _sampled_rows(surface) -> object:
+    """One fit round's area samples of a new placement and their rows (the layout's, after its first round)."""
+    hits, _ = surface.samples()
+    return surface.rows(hits)
+
+
 def bench_fit(quick: bool) -> list[Row]:
-    """The parts of one round of the refinement's fit on a torus cage, its target points its limit surface's
-    points moved off it (0.02 of the tube's radius): the foot points from scratch (a new limit surface: its
-    search trees built) and from the last round's (a fit's later rounds), the normal equations of those pairs
-    and one damped solve of them."""
+    """The parts of one round of the refinement's fit on a torus cage (regular) and a split cube (valence-3
+    corners, refined locally to depth 5), the target points their limit surface's points moved off it (0.02):
+    the foot points from scratch (a new limit surface: its search trees built) and from the last round's (a
+    fit's later rounds), the area samples and their rows, the normal equations of the foot points and one damped
+    solve of them."""
     from gsr_cad.geometry.limit_surface import LimitSurface, get_layout
     from gsr_cad.reconstruct.surface import _normal_equations, _solve_spd
 
     budget = 0.2 if quick else 2.0
     rows = []
     rng = np.random.default_rng(0)
-    cases = {"torus 16x8": torus(16, 8)} if quick else {"torus 16x8": torus(16, 8), "torus 25x20": torus(25, 20)}
+    cube = unit_cube()
+    split = subdivision.get_catmull_clark(cube, 2 if quick else 4, "all").refine(cube.vertices)
+    cases = {"torus 16x8": torus(16, 8), f"cube split {2 if quick else 4}x": split}
+    if not quick:
+        cases["torus 25x20"] = torus(25, 20)
     for name, mesh in cases.items():
         count = 2000 if quick else 8000
-        layout = get_layout(mesh, "all", 4)
+        layout = get_layout(mesh, "all", 4 if name.startswith("torus") else 5)
         surface = LimitSurface(layout, mesh.vertices)
         on = surface.samples()[0].point
         points = on[rng.integers(0, len(on), count)] + rng.normal(0.0, 0.02, (count, 3))
@@ -243,6 +254,8 @@ def bench_fit(quick: bool) -> list[Row]:
                         timeit(lambda: LimitSurface(layout, mesh.vertices).closest(points), budget, 3), note))
         rows.append(Row("fit", name, mesh.n_faces, "foot points, hinted",
                         timeit(lambda: surface.closest(points, hits), budget), note))
+        rows.append(Row("fit", name, mesh.n_faces, "area samples and their rows",
+                        timeit(lambda: _sampled_rows(LimitSurface(layout, mesh.vertices)), budget), note))
         rows.append(Row("fit", name, mesh.n_faces, "normal equations",
                         timeit(lambda: _normal_equations(A, hits.normal, points, np.full(count, 1.0 / count)),
                                budget), note))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gsr_cad.geometry.limit_surface import LimitSurface, _grid_params, build_layout, get_layout
+from gsr_cad.geometry.limit_surface import LimitSurface, _bases, _grid_params, bspline_basis, build_layout, get_layout
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.geometry.surface_distance import area_samples, closest_on_triangles
@@ -106,6 +106,45 @@ def test_area_samples_integrate_the_area_and_depth_shrinks_the_pending_part():
         pending.append(weight[hits.patch < 0].sum())
     assert pending[0] > 10 * pending[1] > 100 * pending[2]
     assert get_layout(mesh) is get_layout(mesh.with_vertices(mesh.vertices * 2))
+
+
+def test_the_bases_of_every_order_at_once_are_the_basis_and_its_derivatives():
+    """:func:`_bases` equals :func:`bspline_basis` of each order bit for bit, which is the cubic B-spline basis
+    (partition of unity; a central difference gives the next order)."""
+    t = np.random.default_rng(5).random(200)
+    together = _bases(t)
+    for k in range(3):
+        assert np.array_equal(together[:, k], bspline_basis(t, k))
+    np.testing.assert_allclose(together[:, 0].sum(axis=1), 1.0, atol=1e-15)
+    h = 1e-6
+    for k in (0, 1):
+        np.testing.assert_allclose((bspline_basis(t + h, k) - bspline_basis(t - h, k)) / (2 * h), together[:, k + 1],
+                                   atol=1e-6)
+
+
+def test_area_samples_of_a_layout_built_once_follow_every_placement():
+    """The area samples' maps are built once per connectivity; a second placement's samples are its own
+    surface's points, unit normals and area elements (evaluated here from the patches' poles), and their rows
+    map its control vertices to those points, bit for bit as a surface with a cold cache gives them."""
+    mesh = curved_meshes()[1]
+    layout = build_layout(mesh)
+    moved = mesh.vertices + np.random.default_rng(2).normal(0, 0.05, mesh.vertices.shape)
+    LimitSurface(layout, mesh.vertices).samples()  # fills the layout's maps
+    surface = LimitSurface(layout, moved)
+    hits, area = surface.samples()
+    on = hits.patch >= 0
+    p, du, dv = surface.evaluate(hits.patch[on], hits.u[on], hits.v[on], derivatives=True)
+    np.testing.assert_allclose(hits.point[on], p, atol=1e-12)
+    cross = np.cross(du, dv)
+    np.testing.assert_allclose(hits.normal[on], cross / np.linalg.norm(cross, axis=1)[:, None], atol=1e-12)
+    w = area[on] / np.linalg.norm(cross, axis=1)
+    assert np.all(w > 0) and w.sum() == pytest.approx(float(np.unique(hits.patch[on]).size), rel=1e-12)
+    t = layout.triangles[hits.triangle[~on]]
+    corners = surface.corner_points[t]
+    np.testing.assert_allclose(hits.point[~on], corners.mean(axis=1), atol=1e-12)
+    np.testing.assert_allclose(surface.rows(hits) @ moved, hits.point, atol=1e-12)
+    cold_hits, cold_area = LimitSurface(build_layout(mesh), moved).samples()
+    assert np.array_equal(cold_hits.point, hits.point) and np.array_equal(cold_area, area)
 
 
 def test_area_samples_of_a_mesh_weight_by_area_not_by_vertex():

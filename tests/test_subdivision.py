@@ -502,6 +502,6 @@ def test_kernel_benchmark_runs(tmp_path, capsys, monkeypatch):
     assert module.main(["--quick", "--out", str(out)]) == 0
     table = out.read_text()
     assert table.count("| subdivision | cube | 6 |") == 3 and "| subdivision | torus 8x4 | 32 |" in table
-    assert table.count("| fit | torus 16x8 | 128 |") == 4
+    assert table.count("| fit | torus 16x8 | 128 |") == 5 and table.count("| fit | cube split 2x | 96 |") == 5
     with pytest.raises(SystemExit):
         module.main(["--sections", "nope", "--out", str(out)])

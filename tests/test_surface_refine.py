@@ -342,6 +342,25 @@ def test_a_fit_moves_the_cage_around_faces_that_start_unsound():
     np.testing.assert_array_equal(moved[list(face)], v[list(face)])  # the unsound face's vertices held
 
 
+def test_a_fit_stops_at_the_floor_and_a_fit_from_there_runs_no_round():
+    """A target the cage's structure holds exactly: the fit ends once its cost is below ``FIT_FLOOR`` (rounds
+    past it polish nothing a user can see), far before its rounds or its gain run out; a run's goal below the
+    floor lowers it."""
+    from gsr_cad.reconstruct.surface import FIT_FLOOR
+
+    truth = _blob(4)
+    target = surface_target(limit_mesh(truth, 3), "blob")
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), truth)
+    start = truth.with_vertices(truth.vertices * 1.05 + 0.02)
+    v, cost = problem.fit(start, 200, min_gain=1.0 - 1e-12)
+    rounds = problem.fit_rounds
+    assert cost <= FIT_FLOOR < problem.fit(start, 0)[1] and 0 < rounds < 50
+    again, same = problem.fit(start.with_vertices(v), 200, min_gain=1.0 - 1e-12)
+    assert problem.fit_rounds == 0 and same == pytest.approx(cost, rel=1e-6) and np.array_equal(again, v)
+    deeper = SurfaceProblem(target, SurfaceConfig(max_target_points=1500, refine_until=1e-8), truth)
+    assert deeper.fit(start, 200, min_gain=1.0 - 1e-12)[1] < cost / 4  # a goal below the floor moves it
+
+
 def test_a_fit_past_its_deadline_runs_no_round():
     target = surface_target(limit_mesh(_blob(1), 3), "blob")
     cube = box_template(target)
@@ -534,7 +553,9 @@ def test_only_cages_no_op_grows_from_are_fitted_with_free_corners(monkeypatch):
     corners, and the last cage (fitted with them) replays from its genome."""
     import gsr_cad.reconstruct.refine as refine_module
 
-    truth = _blob(0)
+    blob = _blob(0)  # split once more and moved: no 26-vertex cage reaches the fit's floor, the last level is a finish
+    fine = get_catmull_clark(blob, 1, "all").refine(blob.vertices)
+    truth = fine.with_vertices(fine.vertices * (1.0 + 0.1 * np.random.default_rng(0).random((fine.n_vertices, 1))))
     target = surface_target(limit_mesh(truth, 3), "blob0")
     problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000, refine_fill=0.0), box_template(target))
     problem.max_faces = 30

@@ -22,6 +22,7 @@ points (nearest samples, then clamped Newton on a few candidate patches), area-w
 from __future__ import annotations
 
 import dataclasses
+from collections import OrderedDict
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,6 +58,9 @@ class LimitLayout:
     corners: sp.csr_matrix
     triangles: np.ndarray
     n_control: int
+    maps: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
+    """Per patch depth, the search grid's and the area samples' patches, parameters and weights (fixed by the
+    connectivity), built on first use: every fit round of a cage reuses them."""
 
     @property
     def n_patches(self) -> int:
@@ -179,6 +183,27 @@ def bspline_basis(t: np.ndarray, order: int = 0) -> np.ndarray:
     return out
 
 
+def _bases(t: np.ndarray) -> np.ndarray:
+    """``(len(t), 3, 4)``: :func:`bspline_basis` of orders 0, 1 and 2 at once (a Newton step needs all three)."""
+    s = 1.0 - t
+    t2 = t * t
+    t3 = t2 * t
+    out = np.empty((len(t), 3, 4))
+    out[:, 0, 0] = s * s * s / 6.0
+    out[:, 0, 1] = (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0
+    out[:, 0, 2] = (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0
+    out[:, 0, 3] = t3 / 6.0
+    out[:, 1, 0] = -0.5 * s * s
+    out[:, 1, 1] = 1.5 * t2 - 2.0 * t
+    out[:, 1, 2] = -1.5 * t2 + t + 0.5
+    out[:, 1, 3] = 0.5 * t2
+    out[:, 2, 0] = s
+    out[:, 2, 1] = 3.0 * t - 2.0
+    out[:, 2, 2] = 1.0 - 3.0 * t
+    out[:, 2, 3] = t
+    return out
+
+
 @dataclasses.dataclass(frozen=True)
 class Hits:
     """Points on a limit surface: on patch ``patch`` at ``(u, v)``, or (``patch == -1``) on pending
@@ -234,8 +259,10 @@ class LimitSurface:
         self.control = v
         self.poles = (layout.poles @ v).reshape(-1, 4, 4, 3)
         self._pole_rows = np.ascontiguousarray(self.poles.transpose(0, 1, 3, 2)).reshape(-1, 12, 4)
+        self._poles16 = self.poles.reshape(-1, 16, 3)
         self.corner_points = layout.corners @ v
         self._groups: list | None = None
+        self._sampled: tuple[Hits, tuple] | None = None  # the last samples() and the layout's maps they came from
 
     @classmethod
     def of(cls, mesh: PolyMesh, boundary: str = "all", depth: int = DEPTH) -> LimitSurface:
@@ -256,17 +283,14 @@ class LimitSurface:
             for d in np.unique(dep):
                 sel = np.flatnonzero(dep == d)
                 m = _SEARCH_GRID.get(int(d), 1)
-                g = (np.arange(m) + 0.5) / m  # cell centres: no sample on a border shared by several patches
-                u, v = np.repeat(g, m), np.tile(g, m)
-                owner = np.repeat(sel, u.size)
-                params = np.tile(np.stack([u, v], 1), (sel.size, 1))
-                pts = self.evaluate(owner, params[:, 0], params[:, 1])
+                owner, params, basis = self.layout.maps.get(("grid", int(d))) or _grid_maps(self.layout, sel, m)
+                pts = (basis @ self._poles16[sel]).reshape(-1, 3)
                 # a uniform bicubic's derivative along u (v) is at most its largest pole step along u (v), and
                 # a cell's points are within 1 / (2 m) of its centre along each
                 poles = self.poles[sel]
                 step_u = np.linalg.norm(np.diff(poles, axis=1), axis=3).max(axis=(1, 2))
                 step_v = np.linalg.norm(np.diff(poles, axis=2), axis=3).max(axis=(1, 2))
-                radius = np.repeat((step_u + step_v) / (2 * m), u.size)
+                radius = np.repeat((step_u + step_v) / (2 * m), m * m)
                 self._groups.append((cKDTree(pts), owner, params, radius))
             if len(self.layout.triangles):
                 self._pending = TriangleSet(self.corner_points, self.layout.triangles)
@@ -288,8 +312,7 @@ class LimitSurface:
                 break
             ua, va = u[active], v[active]
             g = poles[active]
-            d = _tensor(g, np.stack([bspline_basis(ua, k) for k in range(3)], axis=1),
-                        np.stack([bspline_basis(va, k) for k in range(3)], axis=2))
+            d = _tensor(g, _bases(ua), _bases(va).transpose(0, 2, 1))
             s, su, sv = d[:, 0, :, 0], d[:, 1, :, 0], d[:, 0, :, 1]
             suu, suv, svv = d[:, 2, :, 0], d[:, 1, :, 1], d[:, 0, :, 2]
             r = x[active] - s
@@ -424,35 +447,35 @@ class LimitSurface:
     def samples(self, density: int = 0) -> tuple[Hits, np.ndarray]:
         """Area samples of the whole surface and their weights (areas, summing to the surface's area):
         Gauss-Legendre points on every patch (more on larger patches; ``density`` adds points per side) and
-        the centroid of every pending triangle."""
-        dep = self.layout.depth
-        parts = []
-        for d in np.unique(dep):
-            sel = np.flatnonzero(dep == d)
-            n = _QUADRATURE.get(int(d), 1) + int(density)
-            g, w = np.polynomial.legendre.leggauss(n)
-            g, w = 0.5 * (g + 1.0), 0.5 * w
-            parts.append((np.repeat(sel, n * n), np.tile(np.repeat(g, n), sel.size), np.tile(np.tile(g, n), sel.size),
-                          np.tile(np.outer(w, w).ravel(), sel.size)))
-        patch = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
-        u = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
-        v = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
-        w = np.concatenate([p[3] for p in parts]) if parts else np.zeros(0)
-        n_t = len(self.layout.triangles)
-        patch = np.concatenate([patch, np.full(n_t, -1)])
-        u, v = np.concatenate([u, np.zeros(n_t)]), np.concatenate([v, np.zeros(n_t)])
-        tri = np.concatenate([np.full(len(w), -1), np.arange(n_t)])
-        bary = np.concatenate([np.zeros((len(w), 3)), np.full((n_t, 3), 1.0 / 3.0)])
-        hits = self._hits(patch, u, v, tri, bary, None)
-        area = np.zeros(len(patch))
+        the centroid of every pending triangle. Their parameters are the layout's (built once per connectivity),
+        and so are their :meth:`rows` (kept for the few latest connectivities)."""
+        maps = self.layout.maps.get(("samples", int(density))) or _sample_maps(self.layout, int(density))
+        patch, u, v, w, tri, bary, groups = maps
         on = patch >= 0
+        point = np.zeros((len(patch), 3))
+        su, sv = np.zeros((int(on.sum()), 3)), np.zeros((int(on.sum()), 3))
+        at = 0
+        for sel, basis in groups:  # per patch depth: (its patches, basis (3, k, 16): value, d/du, d/dv)
+            k = basis.shape[1]
+            out = basis[:, None] @ self._poles16[sel][None]  # (3, patches, k, 3)
+            span = slice(at, at + sel.size * k)
+            point[span], su[span], sv[span] = (out[i].reshape(-1, 3) for i in range(3))
+            at += sel.size * k
+        normal = np.zeros_like(point)
+        area = np.zeros(len(patch))
         if on.any():
-            _, du, dv = self.evaluate(patch[on], u[on], v[on], derivatives=True)
-            area[on] = w * np.linalg.norm(np.cross(du, dv), axis=1)
-        if n_t:
+            cross = np.cross(su, sv)
+            norm = np.linalg.norm(cross, axis=1)
+            normal[on] = np.divide(cross, norm[:, None], out=np.zeros_like(cross), where=norm[:, None] > 0)
+            area[on] = w * norm
+        if (~on).any():
             t = self.layout.triangles
             a, b, c = (self.corner_points[t[:, i]] for i in range(3))
-            area[~on] = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+            cross = np.cross(b - a, c - a)
+            point[~on] = (a + b + c) / 3.0
+            normal[~on], area[~on] = _unit(cross), 0.5 * np.linalg.norm(cross, axis=1)
+        hits = Hits(patch, u, v, tri, bary, point, normal, np.zeros(len(patch)))
+        self._sampled = (hits, maps)
         return hits, area
 
     def random_points(self, count: int, seed: int = 0) -> np.ndarray:
@@ -485,21 +508,99 @@ class LimitSurface:
     # --- linear maps -------------------------------------------------------------------------------------
     def rows(self, hits: Hits) -> sp.csr_matrix:
         """``(q, n)`` sparse rows: ``rows @ V`` is the hit points for control vertices ``V`` (same hits)."""
-        q = len(hits.patch)
-        on = np.flatnonzero(hits.patch >= 0)
-        off = np.flatnonzero(hits.patch < 0)
-        parts = []
-        if on.size:
-            w = np.einsum("qa,qb->qab", bspline_basis(hits.u[on]), bspline_basis(hits.v[on])).reshape(-1)
-            cols = (16 * hits.patch[on][:, None] + np.arange(16)).ravel()
-            pick = sp.csr_matrix((w, (np.repeat(on, 16), cols)), shape=(q, self.layout.poles.shape[0]))
-            parts.append(pick @ self.layout.poles)
-        if off.size:
-            t = self.layout.triangles[hits.triangle[off]]
-            pick = sp.csr_matrix((hits.barycentric[off].ravel(), (np.repeat(off, 3), t.ravel())),
-                                 shape=(q, self.layout.corners.shape[0]))
-            parts.append(pick @ self.layout.corners)
-        if not parts:
-            return sp.csr_matrix((q, self.layout.n_control))
-        return sp.csr_matrix(sum(parts[1:], parts[0]))
+        if self._sampled is not None and hits is self._sampled[0]:  # the area samples: their rows are kept
+            key = id(self._sampled[1])
+            kept = _SAMPLE_ROWS.pop(key, None)
+            if kept is None or kept[0] is not self._sampled[1]:
+                kept = (self._sampled[1], _rows(self.layout, hits.patch, hits.u, hits.v, hits.triangle,
+                                                hits.barycentric))
+            _SAMPLE_ROWS[key] = kept
+            while len(_SAMPLE_ROWS) > _SAMPLE_ROWS_KEPT:
+                _SAMPLE_ROWS.popitem(last=False)
+            return kept[1]
+        return _rows(self.layout, hits.patch, hits.u, hits.v, hits.triangle, hits.barycentric)
 
+
+
+def _basis16(u: np.ndarray, v: np.ndarray, order_u: int = 0, order_v: int = 0) -> np.ndarray:
+    """``(k, 16)``: column ``4 i + j`` weighs pole ``(i, j)`` of a patch at ``(u[k], v[k])`` (or its derivative of
+    orders ``order_u``, ``order_v``)."""
+    return np.einsum("ka,kb->kab", bspline_basis(u, order_u), bspline_basis(v, order_v)).reshape(-1, 16)
+
+
+def _grid_maps(layout: LimitLayout, sel: np.ndarray, m: int) -> tuple:
+    """The search grid of the patches ``sel`` (one depth): ``m x m`` cell centres per patch (no sample on a
+    border shared by several patches), their owners and parameters, and the basis ``(m m, 16)``; kept."""
+    g = (np.arange(m) + 0.5) / m
+    u, v = np.repeat(g, m), np.tile(g, m)
+    maps = (np.repeat(sel, u.size), np.tile(np.stack([u, v], 1), (sel.size, 1)), _basis16(u, v))
+    layout.maps[("grid", int(layout.depth[sel[0]]))] = maps
+    return maps
+
+
+def _sample_maps(layout: LimitLayout, density: int) -> tuple:
+    """The area samples of :meth:`LimitSurface.samples`: their patches, parameters, quadrature weights, pending
+    triangles and barycentric coordinates, and per patch depth its patches and bases (value, d/du, d/dv); kept
+    on the layout (read-only)."""
+    dep = layout.depth
+    parts, groups = [], []
+    for d in np.unique(dep):
+        sel = np.flatnonzero(dep == d)
+        n = _QUADRATURE.get(int(d), 1) + density
+        g, w = np.polynomial.legendre.leggauss(n)
+        g, w = 0.5 * (g + 1.0), 0.5 * w
+        u, v = np.repeat(g, n), np.tile(g, n)
+        parts.append((np.repeat(sel, n * n), np.tile(u, sel.size), np.tile(v, sel.size),
+                      np.tile(np.outer(w, w).ravel(), sel.size)))
+        groups.append((sel, np.stack([_basis16(u, v), _basis16(u, v, 1, 0), _basis16(u, v, 0, 1)])))
+    patch = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, dtype=np.int64)
+    u = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
+    v = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)
+    w = np.concatenate([p[3] for p in parts]) if parts else np.zeros(0)
+    n_t = len(layout.triangles)
+    patch = np.concatenate([patch, np.full(n_t, -1)])
+    u, v = np.concatenate([u, np.zeros(n_t)]), np.concatenate([v, np.zeros(n_t)])
+    tri = np.concatenate([np.full(len(w), -1), np.arange(n_t)])
+    bary = np.concatenate([np.zeros((len(w), 3)), np.full((n_t, 3), 1.0 / 3.0)])
+    for a in (patch, u, v, w, tri, bary):
+        a.flags.writeable = False  # shared by every surface of this connectivity
+    maps = (patch, u, v, w, tri, bary, tuple(groups))
+    layout.maps[("samples", density)] = maps
+    return maps
+
+
+_SAMPLE_ROWS: OrderedDict = OrderedDict()
+"""The area samples' :meth:`LimitSurface.rows` of the latest connectivities (by their maps' identity): the same
+every fit round of a cage, and as large as its layout's poles several times over, so only a few are kept."""
+_SAMPLE_ROWS_KEPT = 3
+
+
+def _canonical(m) -> sp.csr_matrix:
+    """``m`` as CSR with sorted, summed indices: a cached map that scipy would otherwise sort in place on some
+    first use must sum in the same order at every use (bit-identical runs)."""
+    m = sp.csr_matrix(m)
+    m.sum_duplicates()
+    m.sort_indices()
+    return m
+
+
+def _rows(layout: LimitLayout, patch: np.ndarray, u: np.ndarray, v: np.ndarray, triangle: np.ndarray,
+          barycentric: np.ndarray) -> sp.csr_matrix:
+    """:meth:`LimitSurface.rows` of points on patches (``patch >= 0``) or pending triangles."""
+    q = len(patch)
+    on = np.flatnonzero(patch >= 0)
+    off = np.flatnonzero(patch < 0)
+    parts = []
+    if on.size:
+        w = np.einsum("qa,qb->qab", bspline_basis(u[on]), bspline_basis(v[on])).reshape(-1)
+        cols = (16 * patch[on][:, None] + np.arange(16)).ravel()
+        pick = sp.csr_matrix((w, (np.repeat(on, 16), cols)), shape=(q, layout.poles.shape[0]))
+        parts.append(pick @ layout.poles)
+    if off.size:
+        t = layout.triangles[triangle[off]]
+        pick = sp.csr_matrix((barycentric[off].ravel(), (np.repeat(off, 3), t.ravel())),
+                             shape=(q, layout.corners.shape[0]))
+        parts.append(pick @ layout.corners)
+    if not parts:
+        return sp.csr_matrix((q, layout.n_control))
+    return _canonical(sum(parts[1:], parts[0]))
