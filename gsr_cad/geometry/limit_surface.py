@@ -521,7 +521,6 @@ class LimitSurface:
         return _rows(self.layout, hits.patch, hits.u, hits.v, hits.triangle, hits.barycentric)
 
 
-
 def _basis16(u: np.ndarray, v: np.ndarray, order_u: int = 0, order_v: int = 0) -> np.ndarray:
     """``(k, 16)``: column ``4 i + j`` weighs pole ``(i, j)`` of a patch at ``(u[k], v[k])`` (or its derivative of
     orders ``order_u``, ``order_v``)."""
