@@ -10,10 +10,11 @@ import trimesh
 
 from gsr_cad.geometry.isomorphism import connectivity_hash
 from gsr_cad.geometry.limit_surface import LimitSurface
-from gsr_cad.geometry.polymesh import PolyMesh
+from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import get_catmull_clark, limit_mesh
 from gsr_cad.ops.mesh import Bevel, EdgeLoop, Extrude, Inset, TranslateVertex
 from gsr_cad.ops.mesh_conn import mesh_view
+from gsr_cad.ops.mesh_kernel import distinct_rings
 from gsr_cad.reconstruct.config import REFINE_STALL_GAIN, SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.errors import OpError
@@ -85,6 +86,31 @@ def test_a_balanced_split_cuts_the_long_rings_until_the_quads_are_about_square()
     assert balanced_split(_cube(), 3.0) == ()  # square already: the split does as well
     bevelled = Bevel(0, 0.3).apply(slab)  # two pentagons: loops would end in them and grow their sides
     assert np.any(bevelled.face_sizes != 4) and balanced_split(bevelled, 3.0) == ()
+
+
+def test_a_balanced_split_cuts_the_next_ring_where_the_longest_folds_and_is_no_split_when_it_barely_grows():
+    """A fitted cage's skewed quads: the loop across the longest ring would fold a face, so the next longest is
+    cut and the split still grows the cage threefold; a split that would grow it less than ``FILL_STEP`` times is
+    none (it stood in for one and kept the budget split from being proposed)."""
+    cube = unit_cube()
+    bar = cube.with_vertices(cube.vertices * [1.0, 1.0, 4.0])
+    cage = get_catmull_clark(bar, 1, "all").refine(bar.vertices)  # 26 vertices, 1:1:4
+    v = cage.vertices.copy()
+    v[[6, 10]] += [[0.22, 0.18, 0.02], [0.33, -0.44, -0.1]]
+    skewed = cage.with_vertices(v)
+    conn = mesh_view(skewed).conn
+    length = {e: np.mean([np.linalg.norm(np.subtract(*v[list(conn.edges[r])])) for r in ring])
+              for e, ring, _ in distinct_rings(conn)}
+    longest = max(length, key=length.get)
+    with pytest.raises(OpError, match="fold"):
+        EdgeLoop(longest).apply(skewed)
+    ops = balanced_split(skewed)
+    built = skewed
+    for op in ops:
+        built = op.apply(built)
+    assert ops and ops[0].edge != longest and built.n_vertices >= 3 * skewed.n_vertices
+    finer = get_catmull_clark(bar, 2, "all").refine(bar.vertices)  # 98 vertices: one loop adds 16
+    assert balanced_split(finer, 1.05) == () and len(balanced_split(finer, 3.0)) > 1
 
 
 def test_a_balanced_split_fits_an_elongated_target_closer_than_a_split_of_as_many_vertices():

@@ -267,9 +267,12 @@ def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[Mes
     has ``growth`` times its vertices: its quads made about square, as a designer adds loops along a long
     part. A split keeps the cage's proportions: a box on an elongated target keeps quads as long as the
     target's aspect (bone, 4:4:4 loops, 98 control vertices fitted: 3.9e-3 of the diagonal both ways; 8:3:2
-    loops, 94: 8.2e-4). Empty when the cage is not all quads (as for a split), no ring can be cut, or it is
-    balanced already (its longest ring's edges under ``BALANCE_RATIO`` times the median ring's: then the split,
-    which keeps the limit surface, does as well and the level's time goes to one full fit, not two)."""
+    loops, 94: 8.2e-4). Where the longest ring's loop would fold a face (a fitted cage's skewed quads), the next
+    longest is cut. Empty when the cage is not all quads (as for a split), it is balanced already (its longest
+    ring's edges under ``BALANCE_RATIO`` times the median ring's: then the split, which keeps the limit surface,
+    does as well and the level's time goes to one full fit, not two), or the loops that apply grow it less than
+    ``FILL_STEP`` times: that is no split, and it must not stand in for one (example007's 546-vertex cage: one
+    loop applied, the next folded a face, and that one loop kept the budget split from being proposed)."""
     ops: list[MeshOp] = []
     if np.any(mesh.face_sizes != 4):
         return ()  # a loop ends in a face that is not a quad and adds a side to it: ever higher n-gons
@@ -287,13 +290,17 @@ def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[Mes
                 lengths.append(float(np.linalg.norm(P[pairs[:, 0]] - P[pairs[:, 1]], axis=1).mean()))
         if not rings or (not ops and max(lengths) < BALANCE_RATIO * float(np.median(lengths))):
             break  # nothing to cut, or the quads are about square already (a split does as well, and keeps the limit)
-        best = rings[int(np.argmax(lengths))]
-        try:
-            current = EdgeLoop(best).apply(current)
-        except OpError:
+        for i in np.argsort(-np.asarray(lengths), kind="stable"):  # the longest ring whose loop folds no face
+            try:
+                grown = EdgeLoop(rings[int(i)]).apply(current)
+            except OpError:
+                continue
+            current = grown
+            ops.append(EdgeLoop(rings[int(i)]))
             break
-        ops.append(EdgeLoop(best))
-    return tuple(ops)
+        else:
+            break
+    return tuple(ops) if current.n_vertices >= FILL_STEP * mesh.n_vertices else ()
 
 
 def budget_split(mesh: PolyMesh, res: Residual, room: Callable[[PolyMesh], bool]) -> tuple[MeshOp, ...]:

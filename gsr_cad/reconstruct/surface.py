@@ -111,9 +111,9 @@ METRIC_DENSITY = 2
 METRIC_POINTS = 20000  # area samples of a mesh target the reported distances use (a cloud: all its points)
 METRIC_CHUNK = 50_000  # points whose foot points the reported distances find at once (bounded memory)
 BACK_SAMPLES = 20_000
-CHORD_SAG_SHARE = 1.0  # share of a triangle's chord sag within which the refinement's fit leaves the surface free
 """Area samples of a mesh target whose triangles a fit with ``exact_back`` projects onto (its surface -> target
 direction, :class:`~gsr_cad.geometry.surface_distance.NearTriangles`); the reported metrics use every triangle."""
+CHORD_SAG_SHARE = 1.0  # share of a triangle's chord sag within which the refinement's fit leaves the surface free
 SEARCH_POINTS = 50_000  # most points of a cloud the search sees (a fixed random subset of larger ones)
 _TARGET_SEED = 20240  # fixed seed of the target subsample (the cost must not depend on the run's seed)
 CLOUD_POINTS_PER_FACE = 8  # data points a refined cage needs per face on a point cloud (refine_face_limit)
