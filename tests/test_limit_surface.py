@@ -66,24 +66,6 @@ def test_foot_points_equal_brute_force(mesh_index, spread):
     np.testing.assert_allclose(np.linalg.norm(found.point - x, axis=1), found.distance, atol=1e-12)
 
 
-def test_a_hint_left_in_a_local_minimum_on_a_far_sheet_is_searched_again():
-    """A hinted foot point inside its patch may be a local minimum only (the previous round's foot point while
-    another sheet of the surface moved nearer): where a grid sample of the surface is nearer than it, the point
-    is searched afresh, and gets the closest point that brute force finds."""
-    slab = unit_cube()
-    slab = slab.with_vertices(slab.vertices * np.array([1.0, 1.0, 0.15]))
-    surface = LimitSurface.of(slab, depth=3)
-    rng = np.random.default_rng(7)
-    top = surface.closest(np.array([[0.0, 0.0, 1.0]])).point[0, 2]
-    xy = rng.uniform(-0.1, 0.1, (40, 2))
-    above = np.column_stack([xy, np.full(40, top + 0.01)])
-    far = surface.closest(above * np.array([1.0, 1.0, -1.0]))  # the foot points on the bottom sheet
-    assert np.all(far.point[:, 2] < 0)
-    hinted = surface.closest(above, far)
-    np.testing.assert_allclose(hinted.distance, _brute(surface, above), rtol=1e-7, atol=1e-12)
-    assert np.all(hinted.point[:, 2] > 0) and hinted.distance.max() < 0.02
-
-
 def test_offsets_along_the_normal_are_the_distance():
     mesh = curved_meshes()[1]
     surface = LimitSurface.of(mesh)

@@ -337,7 +337,7 @@ def test_the_refinement_keeps_going_when_no_single_proposal_is_left(monkeypatch)
     monkeypatch.setattr(refine_module, "candidates", lambda mesh, res: [])
     monkeypatch.setattr(refine_module, "split_all", lambda state, fitted: None)
     monkeypatch.setattr(refine_module, "inset_batch", lambda mesh, res: ())
-    monkeypatch.setattr(refine_module, "budget_split", lambda mesh, res, room: ())
+    monkeypatch.setattr(refine_module, "budget_split", lambda mesh, res, room, soft=None: ())
     target = surface_target(limit_mesh(_blob(0), 3), "blob")
     problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000), box_template(target))
     problem.max_faces = 400
@@ -352,7 +352,7 @@ def test_the_refinement_keeps_going_when_no_single_proposal_is_left(monkeypatch)
 
 
 def test_a_fit_moves_the_cage_around_faces_that_start_unsound():
-    from gsr_cad.reconstruct.surface import _unsound_faces
+    from gsr_cad.ops.mesh_kernel import unsound_faces
 
     cube = _cube()
     fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
@@ -360,7 +360,7 @@ def test_a_fit_moves_the_cage_around_faces_that_start_unsound():
     face = fine.faces[0]
     v[face[0]] = v[face[2]] + 1e-9 * (v[face[1]] - v[face[2]])  # a degenerate (unsound) face
     start = fine.with_vertices(v)
-    assert _unsound_faces(start, start.face_newell)[0]
+    assert unsound_faces(start, start.face_newell)[0]
     target = surface_target(limit_mesh(fine.with_vertices(1.3 * fine.vertices), 3), "big")
     problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), start)
     moved, cost = problem.fit(start, 4, min_gain=1.0, adaptive=True, stiffness=0.1)
@@ -530,6 +530,43 @@ def test_ops_that_fold_a_face_on_the_fitted_cage_follow_moves_to_a_smoother_one(
     assert connectivity_hash(built) == connectivity_hash(loop.apply(limit_cage(skewed)))
 
 
+def test_a_budget_split_cut_on_the_softened_cage_is_placed_after_the_moves_and_commits():
+    """A converged cage whose limit cage has a face the ops refuse: the moves towards the limit cage stop short of
+    it, so loops cut on the limit cage fold on every cage a history can reach. Cut on the softened cage (the moves
+    that do replay), they are placed after those moves, and the level commits and replays."""
+    from gsr_cad.ops.mesh_kernel import unsound_faces
+    from gsr_cad.reconstruct.refine import _apply, _commit, residual, softened
+
+    cube = _cube()
+    fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
+    fine = get_catmull_clark(fine, 1, "all").refine(fine.vertices)
+    problem = SurfaceProblem(surface_target(limit_mesh(fine, 1), "split cube"), SurfaceConfig(), fine)
+    problem.max_faces = 1000
+    rng = np.random.default_rng(3)
+    moves, skewed, _ = problem._moves(fine, fine.vertices + 0.2 * rng.normal(size=fine.vertices.shape))
+    assert unsound_faces(limit_cage(skewed), skewed.face_newell).any()
+    soft_moves, soft = softened(problem, moves)
+    assert np.allclose(problem.control_mesh(moves + soft_moves).vertices, soft.vertices)
+    assert not unsound_faces(soft, soft.face_newell).any()
+    res = residual(problem, skewed)
+    on_limit = budget_split(skewed, res, lambda mesh: True)
+    assert on_limit and _after(problem, moves, on_limit)[1] is None  # what example007's 546-vertex cage met
+    ops = budget_split(skewed, res, lambda mesh: True, soft)
+    assert len(ops) >= 2 and _apply(ops, skewed) is None
+    prefix, built = _after(problem, moves, ops, soft=(moves, soft_moves, soft))
+    assert built is not None and prefix == moves + soft_moves
+    assert np.allclose(problem.control_mesh(prefix + ops).vertices, built.vertices)
+    start = carried(ops, skewed, soft)
+    assert connectivity_hash(start) == connectivity_hash(built)
+    cost = problem.fit(skewed, 0)[1]
+    v, c = problem.fit(start, 6, min_gain=1.0, adaptive=True, fairing=0.0)
+    level = _commit(problem, (), fine, moves, ops, None, start.with_vertices(v), c, cost,
+                    soft=(moves, soft_moves, soft))
+    assert level is not None and level[0] == ops and level[1][:len(prefix)] == prefix
+    assert level[5] < 0.995 * cost
+    assert np.allclose(problem.control_mesh(level[3]).vertices, level[4].vertices, atol=1e-9 * fine.diagonal)
+
+
 def test_a_split_that_folds_a_face_on_the_cage_is_built_on_a_smoother_one():
     """The split's loops depend on the connectivity only and its vertices on the fitted cage only: where a loop
     folds a face on the fitted cage, the split built on one of its limit cages is the same proposal (the same
@@ -554,21 +591,32 @@ def test_a_split_that_folds_a_face_on_the_cage_is_built_on_a_smoother_one():
 
 
 def test_an_op_that_folds_a_face_is_carried_onto_the_fitted_cage():
+    """Each vertex of the carried cage is where the fitted cage has it (a new vertex: the midpoint of its ring edge
+    there), except around faces that carry would leave for the ops to refuse: those keep the smoother cage's
+    positions, so the cage a fit starts from is one that moves can reach."""
+    from gsr_cad.ops.mesh_kernel import unsound_faces
+
     _, _, skewed, loop = _skewed_loop()
     out = carried((loop,), skewed)
     assert out is not None
     n = skewed.n_vertices
-    assert np.allclose(out.vertices[:n], skewed.vertices)  # the fitted cage's vertices stay where they are
     assert out.n_vertices > n and out.topology_key != skewed.topology_key
-    # each new vertex is a ring edge's midpoint on the smoother cage: carried, that edge's midpoint on the fitted one
+    built = loop.apply(limit_cage(skewed))  # where the loop applies
+    assert connectivity_hash(built) == connectivity_hash(out)
+    plain = out.vertices.copy()
+    plain[:n] = skewed.vertices
     edges = {frozenset(e) for e in skewed.topology.edges.tolist()}
     for v in range(n, out.n_vertices):
         ends = [u for f in out.faces if v in f for u in (f[f.index(v) - 1], f[(f.index(v) + 1) % len(f)]) if u < n]
         pair = [frozenset(p) for p in [(a, b) for a in ends for b in ends if a < b] if frozenset(p) in edges]
         assert pair, "a new vertex between two old ones"
         a, b = tuple(pair[0])
-        mid = 0.5 * (skewed.vertices[a] + skewed.vertices[b])
-        assert np.allclose(out.vertices[v], mid)
+        plain[v] = 0.5 * (skewed.vertices[a] + skewed.vertices[b])
+    assert unsound_faces(out.with_vertices(plain), built.face_newell).any()  # the plain carry folds the loop's face
+    assert not unsound_faces(out, built.face_newell).any()
+    at_fit = np.all(np.isclose(out.vertices, plain), axis=1)
+    at_smooth = np.all(np.isclose(out.vertices, built.vertices), axis=1)
+    assert np.all(at_fit | at_smooth) and at_fit.sum() > out.n_vertices // 2 and not at_fit.all()
     flat = PolyMesh.from_faces(np.eye(3), [(0, 1, 2)])
     assert carried((EdgeLoop(0),), flat) is None  # no ring on a triangle: no smoother cage helps
 

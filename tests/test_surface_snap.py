@@ -13,7 +13,8 @@ from gsr_cad.reconstruct import refine
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import SurfaceTarget
 from gsr_cad.reconstruct.snap import SHARES, limit_points, snap_far_vertices
-from gsr_cad.reconstruct.surface import SurfaceProblem, _unsound_faces, surface_metrics
+from gsr_cad.ops.mesh_kernel import unsound_faces
+from gsr_cad.reconstruct.surface import SurfaceProblem, surface_metrics
 
 _FACES = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
 
@@ -43,9 +44,9 @@ def _dumbbell() -> SurfaceTarget:
 def _check_snap(cage: PolyMesh, target: SurfaceTarget, threshold: float) -> tuple[PolyMesh, int]:
     """The snap's invariants: no face newly unsound, vertices whose limit point is near the target untouched,
     each moved vertex moved by one of the shares of its limit point's gap."""
-    out, moved = snap_far_vertices(cage, target.closest, threshold, _unsound_faces)
-    before = _unsound_faces(cage, cage.face_newell)
-    assert not (_unsound_faces(out, cage.face_newell) & ~before).any()
+    out, moved = snap_far_vertices(cage, target.closest, threshold, unsound_faces)
+    before = unsound_faces(cage, cage.face_newell)
+    assert not (unsound_faces(out, cage.face_newell) & ~before).any()
     lim = limit_points(cage)
     dist, foot = target.closest(lim)
     step = out.vertices - cage.vertices
@@ -87,7 +88,7 @@ def test_nothing_moves_when_every_limit_point_is_near():
     sphere = trimesh.creation.icosphere(subdivisions=2)
     target = SurfaceTarget(np.asarray(sphere.vertices), np.asarray(sphere.faces), "sphere")
     cage = _box((1.3, 1.3, 1.3), 1)
-    out, moved = snap_far_vertices(cage, target.closest, 10.0 * target.diagonal, _unsound_faces)
+    out, moved = snap_far_vertices(cage, target.closest, 10.0 * target.diagonal, unsound_faces)
     assert moved == 0 and out is cage
 
 

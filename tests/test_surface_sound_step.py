@@ -8,7 +8,8 @@ from hypothesis import strategies as st
 
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.geometry.subdivision import get_catmull_clark
-from gsr_cad.reconstruct.surface import _FIT_MARGIN, _HALVINGS, _sound_step, _unsound_faces
+from gsr_cad.ops.mesh_kernel import unsound_faces
+from gsr_cad.reconstruct.surface import _FIT_MARGIN, _HALVINGS, _sound_step
 
 _FACES = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
 
@@ -39,10 +40,10 @@ def test_only_the_folding_vertex_is_shortened():
     k = int(np.argmax(V[:, 0] + 0.1 * V[:, 1] + 0.01 * V[:, 2]))
     step[k] = -2.5 * V[k]  # through the middle of the cube: its faces would flip
     ref = cage.face_newell
-    before = _unsound_faces(cage, ref, _FIT_MARGIN)
+    before = unsound_faces(cage, ref, _FIT_MARGIN)
     out = _sound_step(cage, V, step, ref, _FIT_MARGIN)
     assert out is not None
-    assert not (_unsound_faces(cage.with_vertices(out), ref, _FIT_MARGIN) & ~before).any()
+    assert not (unsound_faces(cage.with_vertices(out), ref, _FIT_MARGIN) & ~before).any()
     share = _shares(V, out, step)
     assert 0.0 <= share[k] < 1.0
     face_of = np.repeat(np.arange(cage.n_faces), cage.face_sizes)
@@ -73,11 +74,11 @@ def test_random_steps_end_sound(seed, scale):
     V = cage.vertices
     step = scale * np.random.default_rng(seed).normal(size=V.shape)
     ref = cage.face_newell
-    before = _unsound_faces(cage, ref, _FIT_MARGIN)
+    before = unsound_faces(cage, ref, _FIT_MARGIN)
     out = _sound_step(cage, V, step, ref, _FIT_MARGIN)
     if out is None:
         return
-    assert not (_unsound_faces(cage.with_vertices(out), ref, _FIT_MARGIN) & ~before).any()
+    assert not (unsound_faces(cage.with_vertices(out), ref, _FIT_MARGIN) & ~before).any()
     share = _shares(V, out, step)
     allowed = np.array([0.0] + [0.5 ** h for h in range(_HALVINGS + 1)])
     assert np.all(np.min(np.abs(share[:, None] - allowed[None, :]), axis=1) < 1e-9)
@@ -90,7 +91,7 @@ def test_free_corners_allow_a_concave_corner_but_keep_the_margin():
     cage = _cage()
     V = cage.vertices.copy()
     ref = cage.face_newell
-    assert not _unsound_faces(cage, ref, _FIT_MARGIN).any()
+    assert not unsound_faces(cage, ref, _FIT_MARGIN).any()
     f = 0
     a, b, c, d = cage.faces[f]
     # b pushed towards the face's centre, past the diagonal a-c: the corner at b turns concave (reflex)
@@ -100,13 +101,13 @@ def test_free_corners_allow_a_concave_corner_but_keep_the_margin():
     moved = cage.with_vertices(bent)
     turn = np.cross(bent[b] - bent[a], bent[c] - bent[b]) @ (ref[f] / np.linalg.norm(ref[f]))
     assert turn < 0.0  # the corner at b is concave
-    assert _unsound_faces(moved, ref, _FIT_MARGIN)[f]
-    assert not _unsound_faces(moved, ref, _FIT_MARGIN, convex=False)[f]
-    assert not _unsound_faces(moved, ref)[f]  # the ops' own checks accept it: its moves replay
+    assert unsound_faces(moved, ref, _FIT_MARGIN)[f]
+    assert not unsound_faces(moved, ref, _FIT_MARGIN, convex=False)[f]
+    assert not unsound_faces(moved, ref)[f]  # the ops' own checks accept it: its moves replay
     # a sliver: b pushed onto a's place, but not quite
     thin = V.copy()
     thin[b] = V[a] + 1e-4 * (V[b] - V[a])
-    assert _unsound_faces(cage.with_vertices(thin), ref, _FIT_MARGIN, convex=False)[f]
+    assert unsound_faces(cage.with_vertices(thin), ref, _FIT_MARGIN, convex=False)[f]
     # the step that bends the corner is taken whole with free corners, shortened with convex ones
     step = bent - V
     free = _sound_step(cage, V, step, ref, _FIT_MARGIN, convex=False)

@@ -348,8 +348,7 @@ class LimitSurface:
         radius below that foot point's); the nearest foot point wins, or the nearest point of the pending
         triangles where that is nearer. ``hint`` (the same points' hits on this layout at nearby control
         vertices, e.g. the previous polish round's) is refined first, and searched from scratch only where
-        its foot point leaves the interior of its patch or a grid sample is nearer than it
-        (:meth:`_nearer_sample`)."""
+        its foot point leaves the interior of its patch."""
         x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         q = len(x)
         best = np.full(q, np.inf)
@@ -359,7 +358,6 @@ class LimitSurface:
         bary = np.zeros((q, 3))
         todo = np.arange(q)
         self._search()  # the sample trees and the pending triangles' index, built once per placement
-        kept = None  # the hinted foot points searched again: (rows, distance, patch, u, v)
         if hint is not None and len(hint.patch) == q:
             on = np.flatnonzero(hint.patch >= 0)
             u, v = self.foot_points(hint.patch[on], hint.u[on], hint.v[on], x[on])
@@ -367,16 +365,8 @@ class LimitSurface:
             rows = on[ok]
             patch[rows], uu[rows], vv[rows] = hint.patch[rows], u[ok], v[ok]
             best[rows] = np.linalg.norm(x[rows] - self.evaluate(patch[rows], uu[rows], vv[rows]), axis=1)
-            stale = rows[self._nearer_sample(x[rows], best[rows])]
-            todo = np.union1d(np.setdiff1d(todo, rows), stale)
-            kept = (stale, best[stale], patch[stale], uu[stale], vv[stale])
-            best[stale] = np.inf
+            todo = np.setdiff1d(todo, rows)
         self._search_patches(x, todo, best, patch, uu, vv)
-        if kept is not None and kept[0].size:
-            # the search's foot point where it is nearer, else the hint's (a local minimum still)
-            back = kept[1] < best[kept[0]]
-            sel = kept[0][back]
-            best[sel], patch[sel], uu[sel], vv[sel] = (a[back] for a in kept[1:])
         if len(self.layout.triangles):
             # only points that a pending triangle can be nearer to (bound from the triangles' centroids)
             tree, reach = self._pending_index
@@ -388,16 +378,6 @@ class LimitSurface:
                 best[sel], patch[sel], tri[sel] = hit.distance[nearer], -1, hit.triangle[nearer]
                 bary[sel] = hit.barycentric[nearer]
         return self._hits(patch, uu, vv, tri, bary, x)
-
-    def _nearer_sample(self, points: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """Which of ``points`` have a grid sample of the surface nearer than ``distance``: their foot point is
-        then certainly not the closest point (a hint's Newton stays in a local minimum of its patch when another
-        part of the surface moves nearer: 1 % of example007's points on its 726-vertex cage, after a round)."""
-        nearer = np.zeros(len(points), dtype=bool)
-        if len(points):
-            for tree, *_ in self._search():
-                nearer |= tree.query(points)[0] < distance * (1.0 - 1e-9)
-        return nearer
 
     def _search_patches(self, points: np.ndarray, todo: np.ndarray, best: np.ndarray, patch: np.ndarray,
                         uu: np.ndarray, vv: np.ndarray) -> None:

@@ -41,6 +41,8 @@ INSET_MIN_DEG = 15.0
 """Inset needs every corner of the face in ``[15, 345]`` degrees: at a spike the inner vertex runs off
 by ``thickness / sin(angle / 2)`` and single-precision replays drift."""
 
+CONVEX_SIN = math.sin(math.radians(3.0))
+"""With a margin, :func:`unsound_faces` wants every corner to turn by at least this sine (clearly convex)."""
 _FOLD_COS = math.cos(math.radians(FOLD_DEG))
 _BEVEL_MIN_SIN = math.sin(math.radians(BEVEL_MIN_DEG))
 _INSET_MIN_COS = math.sin(math.radians(INSET_MIN_DEG / 2))
@@ -184,6 +186,40 @@ def _check(what: str, P: list[list[float]], conn: MeshConn, touched: Iterable[in
                 lg = length[g] = math.sqrt(ng[0] * ng[0] + ng[1] * ng[1] + ng[2] * ng[2])
             if fx * ng[0] + fy * ng[1] + fz * ng[2] < threshold * lg:
                 raise OpError(f"{what}: faces {f} and {g} would fold onto each other")
+
+
+def unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float = 1.0,
+                   convex: bool = True) -> np.ndarray:
+    """Per face, True when it fails the mesh ops' own checks (:func:`_check`), for every face at once: a (nearly)
+    zero-length edge or zero area, not star-shaped about its centroid, flipped against
+    ``reference_normals`` or folded onto a neighbour; with ``margin`` > 1, that many times stricter on edge
+    lengths, areas and star shapes and convex at every corner (by ``CONVEX_SIN``), so that the vertex
+    moves to the mesh replay one by one through the states between and the structural ops apply to it
+    (``convex`` False: corners may turn concave, for a cage no op will be applied to)."""
+    diag = mesh.diagonal
+    newell = mesh.face_newell
+    twice_area = np.linalg.norm(newell, axis=1)
+    bad = twice_area < 2.0 * margin * MIN_AREA_REL * diag * diag
+    normal = newell / np.maximum(twice_area, 1e-300)[:, None]
+    bad |= np.einsum("ij,ij->i", normal, reference_normals) <= 0.0
+    topo = mesh.topology
+    v = mesh.vertices
+    p, q = v[topo.he_origin], v[topo.he_dest]
+    c = mesh.face_centroids[topo.he_face]
+    fan = np.einsum("ij,ij->i", np.cross(p - c, q - c), normal[topo.he_face])
+    he_bad = ((np.einsum("ij,ij->i", q - p, q - p) < (margin * MIN_EDGE_REL * diag) ** 2)
+              | (fan < margin * FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]))
+    if margin > 1.0 and convex:  # and every corner clearly convex: the ops (an edge loop's halves, an inset) then apply
+        r = v[topo.he_dest[topo.he_next]] - q
+        turn = np.einsum("ij,ij->i", np.cross(q - p, r), normal[topo.he_face])
+        he_bad |= turn < CONVEX_SIN * np.linalg.norm(q - p, axis=1) * np.linalg.norm(r, axis=1)
+    bad[topo.he_face[he_bad]] = True
+    inner = topo.edge_faces[:, 1] >= 0
+    f, g = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
+    fold = np.einsum("ij,ij->i", normal[f], normal[g]) < -math.cos(math.radians(FOLD_DEG))
+    bad[f[fold]] = True
+    bad[g[fold]] = True
+    return bad
 
 
 def _index(value: int, count: int, what: str, kind: str) -> int:

@@ -59,7 +59,7 @@ from ..geometry.polymesh import PolyMesh
 from ..geometry.subdivision import get_catmull_clark
 from ..ops.mesh import Bevel, EdgeLoop, Extrude, Inset, MeshOp, TranslateVertex
 from ..ops.mesh_conn import mesh_view
-from ..ops.mesh_kernel import distinct_rings, edge_ring
+from ..ops.mesh_kernel import distinct_rings, edge_ring, unsound_faces
 from .result import MAX_OPS
 
 TRIAL_ROUNDS = 3  # least-squares rounds a candidate gets before it is compared
@@ -79,6 +79,7 @@ LEVEL_SNAPS = 1  # snap passes after each level's fit (LEVEL_ROUNDS rounds each)
 SNAP_ROUNDS = 30
 REACH_REFITS = 2
 LAST_ROUNDS = 180  # a level with no room for this many more fit rounds is taken as the last (:func:`_finish`)
+SOUND_PASSES = 4  # passes putting faces the ops refuse back on the smoother cage (:func:`carried`)
 SMOOTHINGS = 3  # smoother cages a level's ops may follow when they fold a face on the fitted one (:func:`_after`)
 REACH_SLACK = 1.05  # a partly replayed level's cage is refitted while it is this much farther than its fit
 """Where some of a level's moves refuse (they would fold a face on the way), the cage the others reach is fitted
@@ -226,15 +227,18 @@ def inset_batch(mesh: PolyMesh, res: Residual) -> tuple[MeshOp, ...]:
     return tuple(ops) if len(ops) >= 2 else ()
 
 
-def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh) -> PolyMesh | None:
-    """``ops`` applied where they fold a face on the fitted ``mesh``: on its first limit cage where they apply
-    (:func:`limit_cage`, up to ``SMOOTHINGS`` deep), then carried back onto ``mesh``: each of its vertices moved
-    by its own offset from that cage, each new vertex by the mean offset of its neighbours that have one. None
-    when they apply on none. On a converged cage most ops fold a face (LetterBlock, 324 control vertices: every
-    edge loop and the bevel), though its fit would gain (each loop: 2-3 % in 12 rounds)."""
+def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh, soft: PolyMesh | None = None) -> PolyMesh | None:
+    """``ops`` applied where they fold a face on the fitted ``mesh``: on ``soft`` (its cage moved towards the limit
+    cage as far as moves replay, :func:`softened`) or its first limit cage where they apply (:func:`limit_cage`, up
+    to ``SMOOTHINGS`` deep), then carried back onto ``mesh``: each of its vertices moved by its own offset from that
+    cage, each new vertex by the mean offset of its neighbours that have one, except where that leaves a face the
+    ops would refuse (those faces keep the smoother cage's positions: a fit holds such faces, and a cage with them
+    cannot be reached by moves). None when they apply on none. On a converged cage most ops fold a face
+    (LetterBlock, 324 control vertices: every edge loop and the bevel), though its fit would gain (each loop:
+    2-3 % in 12 rounds)."""
     smooth = mesh
-    for _ in range(SMOOTHINGS):
-        smooth = limit_cage(smooth)
+    for k in range(-1 if soft is not None else 0, SMOOTHINGS):
+        smooth = soft if k < 0 else limit_cage(mesh if smooth is soft else smooth)
         built = _apply(ops, smooth)
         if built is not None:
             break
@@ -259,7 +263,14 @@ def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh) -> PolyMesh | None:
             return None
         offset[reach] = (adjacency @ (offset * known[:, None]))[reach] / count[reach, None]
         known |= reach
-    return built.with_vertices(built.vertices + offset)
+    out = built.vertices + offset
+    for _ in range(SOUND_PASSES):
+        bad = unsound_faces(built.with_vertices(out), built.face_newell)
+        if not bad.any():
+            break
+        corners = built.corners[np.repeat(bad, built.face_sizes)]
+        out[corners] = built.vertices[corners]
+    return built.with_vertices(out)
 
 
 def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[MeshOp, ...]:
@@ -303,19 +314,20 @@ def balanced_split(mesh: PolyMesh, growth: float = BALANCED_GROWTH) -> tuple[Mes
     return tuple(ops) if current.n_vertices >= FILL_STEP * mesh.n_vertices else ()
 
 
-def budget_split(mesh: PolyMesh, res: Residual, room: Callable[[PolyMesh], bool]) -> tuple[MeshOp, ...]:
+def budget_split(mesh: PolyMesh, res: Residual, room: Callable[[PolyMesh], bool],
+                 soft: PolyMesh | None = None) -> tuple[MeshOp, ...]:
     """Edge loops across the rings carrying most residual, most first, while the cage they build has ``room`` (the
     time or faces left; a split, every ring at once, has not): a split's resolution where the error is, as much
-    of it as the budget holds. The rings are cut on the first limit cage (:func:`limit_cage`), where a converged
-    cage's skewed quads would fold under them. Empty when fewer than two loops fit or they grow the cage less
-    than ``FILL_STEP`` times (a single loop is proposed on its own)."""
+    of it as the budget holds. The rings are cut on ``soft`` (:func:`softened`), else on the first limit cage
+    (:func:`limit_cage`), where a converged cage's skewed quads would fold under them. Empty when fewer than two
+    loops fit or they grow the cage less than ``FILL_STEP`` times (a single loop is proposed on its own)."""
     rings = edge_rings(mesh)
     if len(rings) < 2:
         return ()
     total = np.array([res.total[faces].sum() for _, faces in rings])
     ends = mesh_view(mesh).conn.edges
     ops: tuple[MeshOp, ...] = ()
-    built = limit_cage(mesh)
+    built = limit_cage(mesh) if soft is None else soft
     for i in np.argsort(-total, kind="stable"):
         # a loop splits only its own ring's edges: the others keep their ends, found by them
         index = {frozenset(e): k for k, e in enumerate(mesh_view(built).conn.edges)}
@@ -547,6 +559,13 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
     while (cost > goal and mesh.n_faces < max_faces and not out_of_time()
            and _fit.fits_in_time(mesh, TRIAL_ROUNDS, "residual")):
         res = _fit.timed("residual", mesh, lambda: residual(problem, mesh))
+        soft: list[tuple] = []  # the level's softened cage (:func:`softened`), made once where an op needs it
+
+        def softer() -> PolyMesh:
+            if not soft:
+                soft.append((full, *softened(problem, full)))
+            return soft[0][2]
+
         proposals = []  # (ops, what they build from base_state or None, the cage to fit)
         split = split_all(base_state, mesh)
         smooth = mesh
@@ -575,18 +594,24 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         local = [(op,) for op in candidates(mesh, res)] + [ops for ops in (dug, batch) if ops]
         kinds.update({dug: "pocket", batch: "inset batch"})
         kinds.update({ops: ops[0].name.replace("_", " ") for ops in local if len(ops) == 1})
+        whole: set[tuple] = set()  # the local proposals fitted in full at once
         if not any(b.n_faces <= max_faces and _fit.fits_in_time(b, LEVEL_ROUNDS) for _, _, b in proposals):
             # no split fits the faces or the time left: as many of its loops as do, where the residual is (airplane,
             # its placed cube refined up to 250 faces: from 82 control vertices at 4.6e-3 of the diagonal, 132 at
             # 2.6e-3 and on to 181 at 1.7e-3, where single loops went on to 164 at 2.7e-3)
-            part = budget_split(mesh, res, lambda g: g.n_faces <= max_faces and _fit.has_room(g, 2 * LEVEL_ROUNDS))
+            part = budget_split(mesh, res, lambda g: g.n_faces <= max_faces and _fit.has_room(g, 2 * LEVEL_ROUNDS),
+                                softer())
             if part:
                 local.append(part)
                 kinds.setdefault(part, "budget split")
+                # fitted in full like a split: its trial rounds lag behind one op's (example007, 546 -> 1,584
+                # control vertices: 5.95e-3 of the diagonal after three rounds, behind six single ops, where the
+                # level stood at 5.67e-3; 5.05e-3 after its full fit)
+                whole = {part}
         for ops in local:
             b = _apply(ops, mesh)
             if b is None:
-                b = carried(ops, mesh)
+                b = carried(ops, mesh, softer())
             if b is None:
                 continue
             a = _apply(ops, base_state)
@@ -594,7 +619,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         scored = []
         for ops, a, b in proposals:
             # a split keeps the limit surface: it needs its whole fit to show what it gains
-            rounds = TRIAL_ROUNDS if ops in local else LEVEL_ROUNDS
+            rounds = TRIAL_ROUNDS if ops in local and ops not in whole else LEVEL_ROUNDS
             if out_of_time() or b.n_faces > max_faces or not _fit.fits_in_time(b, rounds):
                 continue
             try:
@@ -602,7 +627,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 # where it is (an edge loop on a blob's converged 26-vertex cage: 2.0e-3 of the diagonal after
                 # three faired rounds, 1.2e-3 without them, 1.4e-3 before the loop)
                 v, c = _fit(b, rounds, fairing=0.0 if ops in local else None)
-                if rounds == LEVEL_ROUNDS and not c < cost and _fit.fits_in_time(b, rounds):
+                if ops not in local and not c < cost and _fit.fits_in_time(b, rounds):
                     # a split of a converged cage: the fairing rows pull it off its fit and every round is
                     # undone (bone, 834 control vertices: 1.2e-4 -> 1.2e-4 faired, 4.2e-5 without them)
                     v, c = _fit(b, rounds, fairing=0.0)
@@ -622,12 +647,14 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         for *_, ops, a, b, v, c in ranked[:LEVEL_TRIES]:
             if out_of_time():
                 break
-            if ops in local and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the split's fit stands
+            if ops in local and ops not in whole and _fit.fits_in_time(b, LEVEL_ROUNDS):  # else the full fit stands
                 v, c = _fit(b.with_vertices(v), LEVEL_ROUNDS, fairing=0.0)
             if c < MIN_GAIN * cost:  # the level's fins and webs snapped before its residual aims the next ops
                 v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)
                 chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
-                                                                 b.with_vertices(v), c, cost, _fit.late(b), via))
+                                                                 b.with_vertices(v), c, cost, _fit.late(b), via,
+                                                                 soft[0] if soft and _apply(ops, mesh) is None
+                                                                 else None))
                 if chosen is not None:
                     break
         if chosen is None:
@@ -650,7 +677,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
         # limit: the 26 -> 98-vertex split fitted 7.8e-3 of the diagonal, its 56-vertex prefix 6.7e-3; on from the
         # prefix, 102 vertices 3.5e-3 where the path from the split had 5.4e-3, and 164 2.7e-3 where it had 166 at
         # 3.1e-3)
-        mid = _middle(problem, _fit, out_of_time, stages[-1], ops, mesh)
+        mid = _middle(problem, _fit, out_of_time, stages[-1], ops, mesh, soft[0] if soft else None)
         if mid is not None:
             middles.add(mid[4].n_vertices)
         if mid is not None and record is not None:
@@ -709,12 +736,13 @@ def fill_counts(sizes: list[int], low: int, high: int, step: float = FILL_STEP) 
     return out
 
 
-def _prefix_sizes(ops: tuple, mesh: PolyMesh) -> list[int]:
+def _prefix_sizes(ops: tuple, mesh: PolyMesh, soft: PolyMesh | None = None) -> list[int]:
     """The control vertices after each op of ``ops`` on ``mesh``, or on the first of its smoother cages
-    (:func:`limit_cage`) where they all apply (a converged cage's skewed quads fold under a loop); empty when
-    they apply on none."""
-    state = mesh
-    for _ in range(SMOOTHINGS + 1):
+    (``soft``, then :func:`limit_cage`'s) where they all apply (a converged cage's skewed quads fold under a loop);
+    empty when they apply on none."""
+    states = [mesh] + ([] if soft is None else [soft])
+    for k in range(SMOOTHINGS + len(states)):
+        state = states[k] if k < len(states) else limit_cage(mesh if k == len(states) else state)
         sizes, built = [], state
         for op in ops:
             built = _apply((op,), built)
@@ -723,7 +751,6 @@ def _prefix_sizes(ops: tuple, mesh: PolyMesh) -> list[int]:
             sizes.append(built.n_vertices)
         else:
             return sizes
-        state = limit_cage(state)
     return []
 
 
@@ -759,32 +786,38 @@ def _fill_front(problem, _fit, out_of_time, stages: list[tuple], levels: list[Le
                 record(done[4], done[5], done[3])
 
 
-def _middle(problem, _fit, out_of_time, stage: tuple, ops: tuple, control: PolyMesh) -> tuple | None:
+def _middle(problem, _fit, out_of_time, stage: tuple, ops: tuple, control: PolyMesh,
+            soft: tuple | None = None) -> tuple | None:
     """The prefix of a level's several ops (``ops``, built on ``stage``'s cage, converged at ``control``) nearest the
     geometric middle of the level's growth, as :func:`_prefix_level` makes it; None for a level of one op or little
-    growth."""
+    growth. ``soft``: the stage's :func:`softened` cage, as :func:`_commit` takes it, when it was made."""
     low, high = stage[3].n_vertices, control.n_vertices
     if len(ops) < 2 or high < FILL_STEP ** 2 * low:
         return None
-    sizes = _prefix_sizes(ops[:-1], stage[3])
+    sizes = _prefix_sizes(ops[:-1], stage[3], None if soft is None else soft[2])
     ks = [k for k, n in enumerate(sizes) if FILL_STEP * low <= n <= high / FILL_STEP]
     if not ks:
         return None
     k = min(ks, key=lambda k: abs(math.log(sizes[k] / math.sqrt(low * high))))
-    return _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], control)
+    return _prefix_level(problem, _fit, out_of_time, stage, ops[:k + 1], control, soft=soft)
 
 
 def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control: PolyMesh,
-                  convex: bool = True) -> tuple | None:
+                  convex: bool = True, soft: tuple | None = None) -> tuple | None:
     """The cage ``part`` (a prefix of a level's ops) builds from the level before it (``stage``: its
     ``(base, base_state, genome, cage, distance)``), fitted from two starts (:func:`_fill_front`; ``control``: the
     level's own converged cage), snapped, committed and finished as a level: ``(ops, base, base_state, genome,
     cage, distance)``, or None when it does not gain on the level before or cannot replay. ``convex`` False (a
-    front point only, no level): finished with free corners (:func:`_finish`)."""
+    front point only, no level): finished with free corners (:func:`_finish`). Ops that fold a face on the
+    stage's cage are placed on its softened cage (``soft``, made here when not given: :func:`softened`)."""
     base, base_state, full, mesh, cost = stage
     b = _apply(part, mesh)
     if b is None:
-        b = carried(part, mesh)
+        if soft is None or soft[0] != full:
+            soft = (full, *softened(problem, full))
+        b = carried(part, mesh, soft[2])
+    else:
+        soft = None
     if b is None or not _fit.fits_in_time(b, 2 * LEVEL_ROUNDS):
         return None
     tries = []
@@ -798,7 +831,8 @@ def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control
     v, c = min(tries, key=lambda t: t[1])
     if not c < MIN_GAIN * cost:
         return None
-    chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c, cost)
+    chosen = _snapped_level(problem, _fit, out_of_time, base, base_state, full, part, b.with_vertices(v), c, cost,
+                            soft)
     if chosen is None or len(chosen[3]) > MAX_OPS:
         return None
     done = _finish(problem, _fit, out_of_time, chosen[4], chosen[5], *chosen[1:4], convex=convex)
@@ -875,7 +909,7 @@ def snapped_within(problem, mesh: PolyMesh, cost: float, deadline: float | None,
 
 def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple, a: PolyMesh | None,
             fitted: PolyMesh, c: float, cost: float, deadline: float | None = None,
-            via: tuple[np.ndarray, ...] = ()) -> tuple | None:
+            via: tuple[np.ndarray, ...] = (), soft: tuple | None = None) -> tuple | None:
     """A level from the fitted cage of ``ops``: ``(ops, the new base, its state, the level's genome, the cage it
     replays to, its distance)``. The ops replay on the base's geometry (``a``, when they apply there) or
     after the last level's moves (:func:`_after`); the fitted positions are reached by moves. Where some
@@ -884,19 +918,29 @@ def _commit(problem, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
     of ``cost``); else None. ``via``: positions the moves may pass through (:meth:`SurfaceProblem._moves`).
     (Only the second path used to be refitted: bone's first split, 418 control vertices, reached 5.9e-3 of
     the diagonal from 1.1e-2 on the first path with 60 refusals, found no place to follow the previous
-    moves, and was dropped.)"""
-    partial = []
-    if a is not None:
-        step, reached, left = _reach_partial(problem, base + ops, a, fitted.vertices, deadline, via)
+    moves, and was dropped.)
+
+    ``soft``: :func:`_after`'s, given for ops that fold a face on the last level's cage and were placed on its
+    softened cage (:func:`softened`); the path after the last level's moves is then tried first, and the base's
+    geometry only where the ops do not apply there either (example007, a budget split of its 546-vertex cage
+    to 1,584: the moves from the template's geometry took 70 s and 1,254 vertices did not get there)."""
+    partial: list[tuple] = []
+    for path in ((1, 0) if soft is not None else (0, 1)):
+        if path == 0 and a is not None:
+            new_base, new_state = base + ops, a
+        elif path == 1:
+            prefix, new_state = _after(problem, full, ops, deadline, soft)
+            if new_state is None:
+                continue
+            new_base = prefix + ops
+        else:
+            continue
+        step, reached, left = _reach_partial(problem, new_base, new_state, fitted.vertices, deadline, via)
         if not left:
-            return ops, base + ops, a, step, fitted, c
-        partial.append((left, 0, base + ops, a, step, reached))
-    prefix, state = _after(problem, full, ops, deadline)
-    if state is not None:
-        step, reached, left = _reach_partial(problem, prefix + ops, state, fitted.vertices, deadline, via)
-        if not left:
-            return ops, prefix + ops, state, step, fitted, c
-        partial.append((left, 1, prefix + ops, state, step, reached))
+            return ops, new_base, new_state, step, fitted, c
+        partial.append((left, path, new_base, new_state, step, reached))
+        if soft is not None:
+            break
     for _, _, new_base, new_state, step, reached in sorted(partial, key=lambda t: t[:2]):
         level = _refit_reached(problem, step, reached, cost, deadline, c)
         if level is not None:
@@ -979,14 +1023,16 @@ def _fallback(problem, _fit, out_of_time, mesh: PolyMesh, cost: float, base: tup
 
 
 def _snapped_level(problem, _fit, out_of_time, base: tuple, base_state: PolyMesh, full: tuple, ops: tuple,
-                   fitted: PolyMesh, c: float, cost: float) -> tuple | None:
+                   fitted: PolyMesh, c: float, cost: float, soft: tuple | None = None) -> tuple | None:
     """The cage ``ops`` build from the last level, fitted (``fitted``, at ``c``), snapped (:data:`LEVEL_SNAPS`
-    passes) and committed as a level (:func:`_commit`; the ops replay on ``base_state`` where they apply)."""
+    passes) and committed as a level (:func:`_commit`, with ``soft``; the ops replay on ``base_state`` where they
+    apply)."""
     v, c, via = snapped(problem, _fit, out_of_time, fitted, c, LEVEL_SNAPS, LEVEL_ROUNDS)
     a = _apply(ops, base_state)
     a = a if a is not None and a.topology_key == fitted.topology_key else None
     return _fit.timed("commit", fitted, lambda: _commit(problem, base, base_state, full, ops, a,
-                                                        fitted.with_vertices(v), c, cost, _fit.late(fitted), via))
+                                                        fitted.with_vertices(v), c, cost, _fit.late(fitted), via,
+                                                        soft))
 
 
 def limit_cage(mesh: PolyMesh) -> PolyMesh:
@@ -1005,17 +1051,34 @@ def _apply(ops: tuple, state: PolyMesh) -> PolyMesh | None:
     return state
 
 
-def _after(problem, genome: tuple, ops: tuple, deadline: float | None = None) -> tuple[tuple, PolyMesh | None]:
+def softened(problem, genome: tuple) -> tuple[tuple, PolyMesh]:
+    """The cage ``genome`` builds moved towards its limit cage (:func:`limit_cage`) as far as the moves replay: the
+    moves and the cage they reach. Unlike the limit cage, every face of it is one the ops accept, and it is where
+    :func:`_after` places ops first, so ops cut on it (a budget split, :func:`carried`) can be committed (example007,
+    546 control vertices: 31 faces of the limit cage fail the ops' checks, the moves towards it stop at 26
+    vertices, and a budget split cut on the limit cage folded a face on every cage a history could reach)."""
+    state = problem.control_mesh(genome)
+    moves, reached, _ = problem._moves(state, limit_cage(state).vertices)
+    return moves, reached
+
+
+def _after(problem, genome: tuple, ops: tuple, deadline: float | None = None,
+           soft: tuple[tuple, tuple, PolyMesh] | None = None) -> tuple[tuple, PolyMesh | None]:
     """Where ``ops`` can follow ``genome``: ``(genome, or genome plus moves towards a smoother cage, the state
     the ops then build)``; None for the state when they apply at none. The smoother cages are the limit cage
     (:func:`limit_cage`) and its own limit cages, up to ``SMOOTHINGS`` deep, each reached by the moves that
     replay: a converged cage's quads are skewed enough that an edge loop folds a face on it and on its first
     limit cage (LetterBlock, 162 control vertices: the split to 642 gained 1.06e-2 -> 6.3e-3 of the diagonal,
-    could not be committed and the refinement lost it). No staged move starts after ``deadline``."""
+    could not be committed and the refinement lost it). No staged move starts after ``deadline``. ``soft``:
+    ``(genome, its moves, the cage they reach)`` of :func:`softened`, tried first."""
     state = problem.control_mesh(genome)
     built = _apply(ops, state)
     if built is not None:
         return genome, built
+    if soft is not None and soft[0] == genome:
+        built = _apply(ops, soft[2])
+        if built is not None:
+            return genome + soft[1], built
     smooth = state
     for _ in range(SMOOTHINGS):
         smooth = limit_cage(smooth)

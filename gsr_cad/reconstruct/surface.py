@@ -88,6 +88,7 @@ from ..geometry.subdivision import get_catmull_clark
 from ..geometry.surface_distance import (NearTriangles, area_samples, chord_sag, cloud_distance,
                                          facet_triangles, mixed_mean_distance, sampling_radius)
 from ..ops import mesh_kernel as MK
+from ..ops.mesh_kernel import unsound_faces
 from ..ops.base import replay
 from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
@@ -545,7 +546,7 @@ class SurfaceProblem:
         ``deadline`` (a ``time.perf_counter()`` value): no round starts that would end after it (each taking as
         long as the rounds so far). ``self.fit_rounds``: the rounds the last fit started (for time predictions).
         ``convex`` False (a cage no op will be applied to): adaptive fits keep their margin on edge lengths, areas
-        and star shapes but let corners turn concave (:func:`_unsound_faces`). ``should_stop()`` turning true
+        and star shapes but let corners turn concave (:func:`unsound_faces`). ``should_stop()`` turning true
         ends the rounds as the deadline does.
         """
         min_gain = self.config.polish_gain if min_gain is None else min_gain
@@ -557,8 +558,8 @@ class SurfaceProblem:
         hint = None
         rel, fails, stiff = self.config.polish_damping, 0, stiffness
         margin = _FIT_MARGIN if adaptive else 1.0
-        lenient = _unsound_faces(mesh, normals0, margin, convex) if adaptive else None
-        held = _unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
+        lenient = unsound_faces(mesh, normals0, margin, convex) if adaptive else None
+        held = unsound_faces(mesh, normals0)  # unsound from the start (a split of a skewed cage): kept as they are
         saved: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
         plain: sp.csc_matrix | None = None  # the saved round's system without the fairing rows
         gained = False  # a step of this fit has lowered the cost
@@ -646,7 +647,7 @@ class SurfaceProblem:
     def snap(self, mesh: PolyMesh, threshold: float) -> tuple[PolyMesh, int]:
         """``mesh`` with its control vertices whose limit points lie over ``threshold`` from the target moved
         onto it as far as the mesh ops allow, and how many moved (:func:`~.snap.snap_far_vertices`)."""
-        return snap_far_vertices(mesh, self.target.closest, threshold, _unsound_faces)
+        return snap_far_vertices(mesh, self.target.closest, threshold, unsound_faces)
 
     def _moves(self, state: PolyMesh, goal: np.ndarray, deadline: float | None = None,
                via: tuple[np.ndarray, ...] = ()) -> tuple[tuple, PolyMesh, int]:
@@ -871,7 +872,6 @@ where the user set a lower one: a micrometre on a metre, below any measured targ
 evaluation's own accuracy (its pending triangles). Rounds past it polish nothing a user can see; an exactly
 representable target's fit went on from 1e-7 to 1.5e-8 in three quarters of its refinement's time."""
 _FIT_MARGIN = 20.0  # adaptive fits keep faces this much clear of the ops' limits (no slivers)
-_CONVEX_SIN = math.sin(math.radians(3.0))
 _STIFF_RELAX, _STIFF_END = 0.5, 1e-3  # adaptive fits: stiffness annealed, coarse to fine
 _SMOOTH_TRIES = 4
 _SMOOTH_START = 1e-2  # first weight of the step's smoothness (relative to the system's mean diagonal)
@@ -1014,20 +1014,20 @@ def _solve_spd(A: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
 
 
 def _sound(mesh: PolyMesh, reference_normals: np.ndarray) -> bool:
-    """True when every face passes the mesh ops' own checks (:func:`_unsound_faces`), so vertex moves to
+    """True when every face passes the mesh ops' own checks (:func:`unsound_faces`), so vertex moves to
     ``mesh`` replay as ops."""
-    return not np.any(_unsound_faces(mesh, reference_normals))
+    return not np.any(unsound_faces(mesh, reference_normals))
 
 
 def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.ndarray,
                 margin: float = 1.0, lenient: np.ndarray | None = None,
                 held: np.ndarray | None = None, convex: bool = True) -> np.ndarray | None:
-    """``V`` moved by ``step``, each vertex of a face it would make unsound (:func:`_unsound_faces` with
+    """``V`` moved by ``step``, each vertex of a face it would make unsound (:func:`unsound_faces` with
     ``margin``, without it for the faces ``lenient``: those that were already inside the margin where the fit
     started) moving half as far in the next pass, down to ``_HALVINGS`` halvings (then not at all), in up to
     ``_STEP_PASSES`` passes, provided at least ``_STEP_KEEP`` of the step's length stays; None when no such move
     is sound. The faces ``held`` (unsound where the fit started) keep their vertices and are not checked: a few
-    such faces do not stop the rest of the cage from moving. ``convex``: as :func:`_unsound_faces` takes it.
+    such faces do not stop the rest of the cage from moving. ``convex``: as :func:`unsound_faces` takes it.
 
     Shortening only the offending vertices' steps, not holding them, keeps most of a round's progress: the
     bunny's split cage (738 control vertices) held 300-470 vertices a round and kept 2-10 % of the step's
@@ -1048,9 +1048,9 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
         if float(np.abs(s).sum()) < _STEP_KEEP * total:
             break
         moved = mesh.with_vertices(V + s)
-        bad = _unsound_faces(moved, normals0, margin, convex)
+        bad = unsound_faces(moved, normals0, margin, convex)
         if lenient is not None and lenient.any():
-            bad[lenient] = _unsound_faces(moved, normals0)[lenient]
+            bad[lenient] = unsound_faces(moved, normals0)[lenient]
         if held is not None:
             bad[held] = False
         if not bad.any():
@@ -1058,40 +1058,6 @@ def _sound_step(mesh: PolyMesh, V: np.ndarray, step: np.ndarray, normals0: np.nd
         share[corners[bad[face_of]]] *= 0.5
         share[share < 0.5 ** _HALVINGS] = 0.0
     return None
-
-
-def _unsound_faces(mesh: PolyMesh, reference_normals: np.ndarray, margin: float = 1.0,
-                   convex: bool = True) -> np.ndarray:
-    """Per face, True when it fails the mesh ops' own checks (:mod:`gsr_cad.ops.mesh_kernel`): a (nearly)
-    zero-length edge or zero area, not star-shaped about its centroid, flipped against
-    ``reference_normals`` or folded onto a neighbour; with ``margin`` > 1, that many times stricter on edge
-    lengths, areas and star shapes and convex at every corner (by ``_CONVEX_SIN``), so that the vertex
-    moves to the mesh replay one by one through the states between and the structural ops apply to it
-    (``convex`` False: corners may turn concave, for a cage no op will be applied to)."""
-    diag = mesh.diagonal
-    newell = mesh.face_newell
-    twice_area = np.linalg.norm(newell, axis=1)
-    bad = twice_area < 2.0 * margin * MK.MIN_AREA_REL * diag * diag
-    normal = newell / np.maximum(twice_area, 1e-300)[:, None]
-    bad |= np.einsum("ij,ij->i", normal, reference_normals) <= 0.0
-    topo = mesh.topology
-    v = mesh.vertices
-    p, q = v[topo.he_origin], v[topo.he_dest]
-    c = mesh.face_centroids[topo.he_face]
-    fan = np.einsum("ij,ij->i", np.cross(p - c, q - c), normal[topo.he_face])
-    he_bad = ((np.einsum("ij,ij->i", q - p, q - p) < (margin * MK.MIN_EDGE_REL * diag) ** 2)
-              | (fan < margin * MK.FAN_MIN_FRAC * (twice_area / mesh.face_sizes)[topo.he_face]))
-    if margin > 1.0 and convex:  # and every corner clearly convex: the ops (an edge loop's halves, an inset) then apply
-        r = v[topo.he_dest[topo.he_next]] - q
-        turn = np.einsum("ij,ij->i", np.cross(q - p, r), normal[topo.he_face])
-        he_bad |= turn < _CONVEX_SIN * np.linalg.norm(q - p, axis=1) * np.linalg.norm(r, axis=1)
-    bad[topo.he_face[he_bad]] = True
-    inner = topo.edge_faces[:, 1] >= 0
-    f, g = topo.edge_faces[inner, 0], topo.edge_faces[inner, 1]
-    fold = np.einsum("ij,ij->i", normal[f], normal[g]) < -math.cos(math.radians(MK.FOLD_DEG))
-    bad[f[fold]] = True
-    bad[g[fold]] = True
-    return bad
 
 
 def _unit_rows(a: np.ndarray) -> np.ndarray:
