@@ -82,7 +82,7 @@ def _same_mesh(ours: PolyMesh, theirs: PolyMesh, tol: float) -> str | None:
     return None
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def replayed(tmp_path_factory):
     """Write every script, run them all in one Blender process, return (cases, results, validity)."""
     if find_host("blender") is None:

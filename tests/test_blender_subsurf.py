@@ -35,7 +35,7 @@ RUNS = [(name, levels, limit, boundary) for name in NAMES for levels in (1, 2, 3
         for boundary in (("ALL", "PRESERVE_CORNERS") if name in OPEN or name == "suzanne" else ("ALL",))]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def blender(tmp_path_factory) -> dict[str, np.ndarray]:
     if find_host("blender") is None:
         pytest.skip("Blender is not installed (Debian: apt-get install blender)")
@@ -114,7 +114,7 @@ def creased(name: str, kind: str) -> PolyMesh:
     return mesh.with_creases(dict(zip(map(tuple, t.edges.tolist()), s)))
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def blender_creased(tmp_path_factory) -> dict[str, np.ndarray]:
     if find_host("blender") is None:
         pytest.skip("Blender is not installed (Debian: apt-get install blender)")
@@ -178,7 +178,7 @@ def dart_meshes() -> dict[str, PolyMesh]:
 DART_QUALITIES = (2, 4, 6, 8, 10)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def blender_darts(tmp_path_factory) -> dict[str, np.ndarray]:
     if find_host("blender") is None:
         pytest.skip("Blender is not installed (Debian: apt-get install blender)")
@@ -239,7 +239,7 @@ def creased_genome_meshes() -> list[PolyMesh]:
     return [genome_mod.replay(unit_cube(), g) for g in creased_genomes()]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def blender_genomes(tmp_path_factory) -> tuple[list[PolyMesh], dict[str, np.ndarray]]:
     if find_host("blender") is None:
         pytest.skip("Blender is not installed (Debian: apt-get install blender)")
@@ -294,7 +294,7 @@ def _read_obj(path: Path) -> PolyMesh:
     return PolyMesh.from_faces(np.array(v), f)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def blender_replays(tmp_path_factory):
     if find_host("blender") is None:
         pytest.skip("Blender is not installed (Debian: apt-get install blender)")

@@ -58,7 +58,7 @@ CASES = {"square": (_square, True, True, 2), "vee3d": (_vee3d, False, True, 3), 
 reconstructed with the Chaikin scheme: quadratic B-splines)."""
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def results():
     out = {}
     for name, (data, closed, cornered, dim) in CASES.items():
@@ -70,7 +70,7 @@ def results():
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def validated(results, tmp_path_factory):
     """Every case exported in its default formats and validated once: name -> (files, warnings, checks)."""
     out = {}
@@ -83,6 +83,14 @@ def validated(results, tmp_path_factory):
         out[name] = ({p.name for p in files}, [str(w.message) for w in caught if issubclass(w.category, GsrWarning)],
                      gsr_cad.validate(folder))
     return out
+
+
+def test_the_module_is_one_group_under_loadgroup(request):
+    """Under ``--dist loadgroup`` (the suite's) this module's tests run on one worker, which builds the fixtures
+    once: xdist names the group in the node id (it did not under pytest 9.2, so pytest is pinned below 9)."""
+    if not getattr(request.config.option, "loadgroup", False):
+        pytest.skip("not run by pytest-xdist with --dist loadgroup")
+    assert request.node.nodeid.endswith("@curve_forms")
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -100,7 +100,7 @@ def test_scad_polyhedron_faces_are_clockwise_from_outside(tmp_path):
 
 # --- the hosts ----------------------------------------------------------------------------------------------
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def exported(tmp_path_factory):
     """One surface result exported in the three host formats (and saved), plus tampered copies."""
     out = tmp_path_factory.mktemp("surface_hosts")

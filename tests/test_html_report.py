@@ -147,7 +147,10 @@ def open_in_chromium(page: Path, profile: Path) -> tuple[list[dict], list[str], 
     return figures, errors, requests
 
 
-@pytest.fixture(scope="module")
+pytestmark = pytest.mark.xdist_group("html_report")  # one worker builds the pages once
+
+
+@pytest.fixture(scope="session")
 def curve_page(tmp_path_factory):
     s = get_sample("bspline_07_noisy")
     result = reconstruct_curve(s.points, seed=1, units="mm", max_distance=0.03, initial_population=80,
@@ -156,7 +159,7 @@ def curve_page(tmp_path_factory):
     return html_report.curve_html(result, s.points, tmp_path_factory.mktemp("c") / "report.html", truth=s.truth_ctrl)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def space_curve_page(tmp_path_factory):
     """The report of a real fit of a helix, with a ground truth (its control points lifted) to draw."""
     t = np.linspace(0, 4 * np.pi, 300)
@@ -170,7 +173,7 @@ def space_curve_page(tmp_path_factory):
     return page, result, pts
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def surface_page(tmp_path_factory):
     s = get_sample("inset_extrude")
     result = reconstruct_surface(s.target, seed=1, units="mm", population=10, initial_population=10, n_parents=4,

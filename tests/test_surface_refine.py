@@ -190,7 +190,7 @@ def test_the_refinement_grows_by_a_budget_split_where_a_split_has_no_room(monkey
     rng = np.random.default_rng(1)
     truth = fine.with_vertices(fine.vertices * (1.0 + 0.3 * rng.random((fine.n_vertices, 1))))
     target = surface_target(limit_mesh(truth, 3), "blob")
-    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=2000, refine_fill=0.0), box_template(target))
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1000, refine_fill=0.0), box_template(target))
     problem.max_faces = 60
     genome, levels = refine(problem, (), 2e-4, time.perf_counter() + 90, 60)
     sizes = [lv.control.n_faces for lv in levels]
