@@ -31,6 +31,16 @@ machine's CPUs, and a refinement's second process beside each would slow them. T
 it (``refine_workers=2``) or clear the variable."""
 
 
+HEAVY_FIRST = ("test_surface_refine.py", "test_surface_reconstruct.py", "test_signals.py", "test_surface_front.py",
+               "test_surface_history_moves.py", "test_export_surface_step.py", "test_surface_budget.py")
+"""Modules of long tests (runs of the refinement, signals sent to whole runs), collected first: xdist hands out
+tests in collection order, and long ones last left a worker idle while the other finished them."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    items.sort(key=lambda item: item.path.name not in HEAVY_FIRST)
+
+
 @pytest.fixture
 def gsr(capsys):
     """Call ``gsr`` with a list of arguments; returns exit code, stdout and stderr."""

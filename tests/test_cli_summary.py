@@ -44,7 +44,8 @@ def test_a_tolerance_in_mm_is_met_and_read_back_in_mm(gsr, noisy, tmp_path):
 
 
 def test_a_missed_tolerance_warns_once_and_exits_3(gsr, noisy, tmp_path):
-    run = gsr("curve", noisy, "-o", tmp_path / "o", "--units", "in", "--max-distance", "0.01%", *FAST)
+    run = gsr("curve", noisy, "-o", tmp_path / "o", "--units", "in", "--max-distance", "0.01%", *FAST,
+              "--max-seconds", "4")
     assert run.code == EXIT_TOLERANCE_MISSED
     assert "MISSED" in run.out and (tmp_path / "o" / "result.json").exists()
     (line,) = run.err.splitlines()
