@@ -141,12 +141,32 @@ def stated_deviation(step: Path) -> dict[str, Any] | None:
         return None
 
 
+NEAR_ENOUGH = 0.1
+"""A foot point found from a neighbour's within this fraction of the allowed deviation is taken without OCCT's
+global search: either is a point on the face, so its distance bounds the true one from above. A creased 164-patch
+solid (178,596 limit points): 40 s with the global search of every point, 6 s so, the same max and mean."""
+
+
+def _foot_on_face(analysis: Any, point: Any, hint: Any, precision: float, near_enough: float) -> tuple[Any, float]:
+    """A point of the face near ``point`` (its UV) and their distance: OCCT's search from ``hint`` (a neighbour's
+    foot point), then, where that is not within ``near_enough``, its global search too, the nearer of the two."""
+    uv, gap = None, math.inf
+    if hint is not None:
+        uv = analysis.NextValueOfUV(hint, point, precision, -1.0)
+        gap = analysis.Gap()
+    if not gap <= near_enough:
+        far = analysis.ValueOfUV(point, precision)
+        if uv is None or analysis.Gap() < gap:
+            uv, gap = far, analysis.Gap()
+    return uv, gap
+
+
 def check_step_surface(step: Path, host: str, result: Any, path: Path | None = None,
                        stated: dict[str, Any] | None = None) -> list[Check]:
     """Compare the shape in the STEP file ``step`` with ``result``'s limit surface: one face per patch, for a
     closed mesh one valid solid of positive volume, and the distance from exact limit points (a grid one
-    level finer than the fit, every patch) to the face they belong to, projected by OCCT (its global search and
-    a search from the previous point's foot point, the nearer: each is a point on the face), within the stated
+    level finer than the fit, every patch) to the face they belong to, projected by OCCT (:func:`_foot_on_face`:
+    from a neighbour's foot point, and globally where that is not near enough), within the stated
     deviation (``stated``, default the figures of our own fit). Checks are reported under ``path``."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepCheck import BRepCheck_Analyzer
@@ -185,6 +205,7 @@ def check_step_surface(step: Path, host: str, result: Any, path: Path | None = N
     m = grids.shape[1]
     tree = cKDTree(grids[:, m // 2, m // 2])
     seen, worst, total, count = set(), 0.0, 0.0, 0
+    precision, near_enough = 1e-10 * patches.diagonal, NEAR_ENOUGH * allowed
     for face in faces:
         surface = BRep_Tool.Surface_s(face)
         u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
@@ -195,19 +216,16 @@ def check_step_surface(step: Path, host: str, result: Any, path: Path | None = N
                                     f"two faces lie on patch {p}: the faces do not match the patches")]
         seen.add(p)
         analysis = ShapeAnalysis_Surface(surface)
-        previous = None
-        for x, y, z in grids[p].reshape(-1, 3).tolist():
-            point, precision = gp_Pnt(x, y, z), 1e-10 * patches.diagonal
-            uv = analysis.ValueOfUV(point, precision)
-            gap = analysis.Gap()
-            if previous is not None:  # OCCT's global search can miss the foot point: also from the last one
-                near = analysis.NextValueOfUV(previous, point, precision, -1.0)
-                if analysis.Gap() < gap:
-                    uv, gap = near, analysis.Gap()
-            previous = uv
-            worst = max(worst, gap) if math.isfinite(gap) else math.inf
-            total += gap
-            count += 1
+        row_start = None
+        for row in grids[p].tolist():
+            previous = row_start
+            for column, (x, y, z) in enumerate(row):
+                uv, gap = _foot_on_face(analysis, gp_Pnt(x, y, z), previous, precision, near_enough)
+                previous = uv
+                row_start = uv if column == 0 else row_start
+                worst = max(worst, gap) if math.isfinite(gap) else math.inf
+                total += gap
+                count += 1
     detail = (f"stated max {limit:.3g}, mean {float(stated.get('mean_deviation', 0.0)):.3g}; measured mean "
               f"{total / max(count, 1):.3g} over {count} limit points")
     return checks + [measured(path, host, "deviation from the limit surface", worst if count else math.inf,
