@@ -1,18 +1,20 @@
 """Real-data surface benchmark: public meshes shipped in installed packages, gsr against the quad-remesh
 baseline (:mod:`baseline_quadremesh`) at the same number of control vertices.
 
-Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bone, the Stanford bunny
-(56k faces), an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by
-``openscad`` (CAD parts: a lettered block, a linear extrusion, text on a cube, a rounded foot under a
-tube, a relief of three stacked extrusions; and every one of the "Old" and "Parametric" examples that renders to one
-closed genus-0 piece: a rounded die with dimples, two intersections of extruded DXF profiles, an intersection of
-two height maps, a pyramid, a sphere with an imprint, an intersection of rotated bars, a comb of cones, an oval
-sign with raised text), whichever are installed. pymeshlab's 10k-face bunny and cow
-and OpenSCAD's CSG, logo and GEB examples are left out here: their genus (estimated by ``target_genus``) is
-not 0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes).
-A target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one
-closed cage webs between). Then issue 13's genus targets (``genus_creases.genus_targets``: built nut,
-torus, ring, frame and the public genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
+Targets, genus 0 (holes are issue 13): pymeshlab's sample meshes (a scan of a bone, the Stanford bunny (56k faces),
+an airplane: scans and organic models) and OpenSCAD's bundled example parts rendered to STL by ``openscad`` (CAD
+parts: a lettered block, a linear extrusion, text on a cube, a rounded foot under a tube, a relief of three stacked
+extrusions; and every one of the "Old" and "Parametric" examples that renders to one closed genus-0 piece: a rounded
+die with dimples, two intersections of extruded DXF profiles, an intersection of two height maps, a pyramid, a
+sphere with an imprint, an intersection of rotated bars, a comb of cones, an oval sign with raised text); and
+FreeCAD's IDF library of electronic packages, STEP models tessellated by OpenCascade (:func:`freecad_parts`: an
+electrolytic capacitor, an E and an I ferrite core, an inductor, SMD packages with their gull-wing leads: MSOP-10,
+TSSOP-8, SOT-323, DPAK, an SOD-523 diode, a 4-pin optocoupler), whichever are installed. pymeshlab's 10k-face bunny
+and cow and OpenSCAD's CSG, logo and GEB examples are left out here: their genus (estimated by ``target_genus``) is
+not 0; so are OpenSCAD's animation example (not a closed manifold) and assert example (many separate cubes). A
+target of several disjoint pieces says so in its name cell (``linear_extrude``: four solids, which one closed cage
+webs between). Then issue 13's genus targets (``genus_creases.genus_targets``: built nut, torus, ring, frame and the
+public genus >= 1 meshes), with the genus template and the crease ops, their genus in the name cell. No download at
 run time. ``--jobs 2`` runs two targets at a time (one core each, each refinement on one process) and prints the
 same table in the same order; ``--jobs 1`` (the default) runs one at a time, its refinement growing the placed
 template on a second core beside the search's winner (``--refine-workers``).
@@ -62,6 +64,13 @@ OPENSCAD_PARTS = ("Basics/LetterBlock.scad", "Basics/linear_extrude.scad", "Basi
                   "Advanced/offset.scad", "Advanced/surface_image.scad", "Old/example006.scad", "Old/example007.scad",
                   "Old/example010.scad", "Old/example011.scad", "Old/example012.scad", "Old/example013.scad",
                   "Old/example014.scad", "Old/example019.scad", "Parametric/sign.scad")
+FREECAD_IDF = Path("/usr/share/freecad/Mod/Idf/Idflibs")
+FREECAD_PARTS = ("CAP_50SGV_8_10", "EPL22_6_16", "I22_2_5_16", "MSOP_10", "RLF_7030", "SOD_523", "SOT428_DPAK",
+                 "SOT_323_3", "TCMT1107_4", "TSS0P_8")
+"""The IDF library's parts that are one closed genus-0 solid (FreeCAD 0.20's files, Debian 12: the others are
+several solids, a body and its leads apart, or have holes)."""
+TESSELLATION = 1e-3
+"""The tessellation's chord tolerance, a fraction of the part's bounding-box diagonal."""
 
 
 def targets(work: Path, only: list[str] | None = None) -> list[Path]:
@@ -87,6 +96,31 @@ def targets(work: Path, only: list[str] | None = None) -> list[Path]:
                 out.append(stl)
             except (subprocess.SubprocessError, OSError):
                 continue
+    return out
+
+
+def freecad_parts(work: Path, only: list[str] | None = None) -> list[Path]:
+    """FreeCAD's bundled IDF library parts (:data:`FREECAD_PARTS`, STEP models of electronic packages) that are one
+    closed genus-0 solid, tessellated by OpenCascade (build123d, the cad extra) into ``work`` as STL, to within
+    :data:`TESSELLATION` of their diagonal; none without FreeCAD's data or build123d."""
+    if not FREECAD_IDF.is_dir():
+        return []
+    try:
+        from build123d import export_stl, import_step
+    except ImportError:
+        return []
+    out = []
+    for name in FREECAD_PARTS:
+        stl = work / f"{name}.stl"
+        if (only and stl.name not in only) or not (FREECAD_IDF / f"{name}.stp").is_file():
+            continue
+        try:
+            shape = import_step(FREECAD_IDF / f"{name}.stp")
+            box = shape.bounding_box()
+            export_stl(shape, str(stl), tolerance=TESSELLATION * box.diagonal, angular_tolerance=0.1)
+            out.append(stl)
+        except Exception:  # noqa: BLE001 - OCCT raises many kinds; a part it cannot read is left out
+            continue
     return out
 
 
@@ -177,7 +211,8 @@ def main(argv: list[str] | None = None) -> int:
              f"Search budget {args.max_seconds:g} s per target (`--max-seconds`), seed {args.seed}; baseline `-`: "
              "QuadriFlow gave no quad mesh near that vertex count.", "", header, "|" + "---|" * 11]
     with tempfile.TemporaryDirectory() as tmp:
-        runs = [(path.name, surface_target(path), {}) for path in targets(Path(tmp), args.only)]
+        paths = targets(Path(tmp), args.only) + freecad_parts(Path(tmp), args.only)
+        runs = [(path.name, surface_target(path), {}) for path in paths]
         runs += [(name, target, GENUS_OPTIONS) for name, target in genus_targets(Path(tmp)).items()]
         runs = [run for run in runs if not args.only or run[0] in args.only]
         rows: list[str | None] = [None] * len(runs)
