@@ -43,7 +43,7 @@ MAX_LEVELS = 6
 _BOUNDARY = {"all": "ALL", "corners": "PRESERVE_CORNERS"}
 CURVE_RESOLUTION = 12
 SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel", "crease",
-               "crease_rim", "hole")
+               "crease_rim", "hole", "extrude_region", "inset_region")
 """The surface ops the Blender mesh script replays."""
 BLENDER_NAME_LIMIT = 63  # bytes in an ID name
 CONTROL_TOL = 1e-6

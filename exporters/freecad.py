@@ -47,7 +47,7 @@ SAMPLES_PER_SPAN = 16
 CURVE_OPS = ("add_point", "move_point", "corner")
 """The curve ops the macro's own replay knows (hostside/freecad_macro.py, ``OPS``)."""
 SURFACE_OPS = ("translate_vertex", "translate_face", "scale", "extrude", "inset", "edge_loop", "bevel", "crease",
-               "crease_rim", "hole")
+               "crease_rim", "hole", "extrude_region", "inset_region")
 """The surface ops the macro's own replay knows (hostside/freecad_macro.py, ``PARAMETERS``)."""
 HISTORY_TIMEOUT = 600
 """Seconds each freecadcmd run of a surface macro's check may take (a refined history: hundreds of objects)."""
@@ -68,6 +68,16 @@ def _recipe(op: Any, state: PolyMesh) -> dict[str, Any]:
     conn = mesh_view(state).conn
     if op.name in ("translate_face", "extrude", "inset"):
         return {"cycle": list(state.faces[op.face])}
+    if op.name in ("extrude_region", "inset_region"):
+        rim, rim_vertices, _ = mesh_kernel.region_rim(mesh_view(state), op.faces, op.name)
+        cycles = [list(state.faces[f]) for f in op.faces]
+        if op.name == "extrude_region":
+            on_rim = set(rim_vertices)
+            inner = list(dict.fromkeys(c for f in op.faces for c in state.faces[f] if c not in on_rim))
+            return {"cycles": cycles, "inner": inner, "rim": rim_vertices}
+        after, before = dict(rim), {v: u for u, v in rim}
+        return {"corners": [[before[v], v, after[v]] for v in rim_vertices],
+                "around": [[c for c in cycles if v in c] for v in rim_vertices]}
     if op.name == "edge_loop":
         return {"ring": [list(conn.edges[e]) for e in mesh_kernel.edge_ring(conn, op.edge)[0]]}
     if op.name == "bevel":

@@ -69,7 +69,7 @@ def test_op_letters_are_expanded_from_one_table():
         assert f"{letter} {meaning}" in page
     assert "V vertex translate, E face extrude, L edge loop" in page
     with pytest.raises(ConfigError, match="letters from " + "".join(OP_KINDS)):
-        SurfaceConfig(op_kinds="VX").validated()
+        SurfaceConfig(op_kinds="VQ").validated()
 
 
 def test_version(capsys):

@@ -71,7 +71,7 @@ def test_crease_op_json_and_checks():
     for bad in ({"edge": -1, "sharpness": 1}, {"edge": 1, "sharpness": 12}, {"edge": 1, "sharpness": "x"}):
         with pytest.raises(InputError):
             Crease(**bad)
-    assert set(ALL_OPS_BY_LETTER) == set(OPS_BY_LETTER) | {"C", "R", "H"}
+    assert set(ALL_OPS_BY_LETTER) == set(OPS_BY_LETTER) | {"C", "R", "H", "X", "N"}
 
 
 def test_random_and_perturbed_creases():

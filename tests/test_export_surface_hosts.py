@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import failures, statuses
 from test_export_results import hand_result
+from test_region_ops import region_genomes
 
 from gsr_cad import genome as genome_mod
 from gsr_cad.cli.formats import export_all, format_names
@@ -25,7 +26,8 @@ from gsr_cad.exporters.freecad import FreecadMacroExporter
 from gsr_cad.exporters.openscad import OpenscadExporter
 from gsr_cad.geometry.polymesh import unit_cube
 from gsr_cad.geometry.subdivision import limit_mesh
-from gsr_cad.ops.mesh import Bevel, Crease, EdgeLoop, Extrude, Hole, Inset, Scale, TranslateFace, TranslateVertex
+from gsr_cad.ops.mesh import (Bevel, Crease, CreaseRim, EdgeLoop, Extrude, ExtrudeRegion, Hole, Inset, InsetRegion,
+                              Scale, TranslateFace, TranslateVertex)
 from gsr_cad.reconstruct.result import Result
 
 OPS = (Extrude(5, 0.42), Inset(1, 0.1), EdgeLoop(0), TranslateVertex(3, (0.05, -0.02, 0.1)), Bevel(2, 0.08),
@@ -280,6 +282,49 @@ def test_gsr_validate_checks_a_creased_result_with_a_hole_in_every_host(gsr, tmp
     _validate_in_every_host(gsr, result, tmp_path, "holed")
     macro = (tmp_path / "holed.FCMacro").read_text(encoding="utf-8")
     assert "{'op': 'hole', 'face_a': 4, 'face_b': 5}" in macro and "{'op': 'crease', 'edge': 12, 'sharpness': 10.0}" in macro
+
+
+# a boss on the top (two faces inset and extruded together), a pocket in the front (four faces around an inner
+# vertex), a single-face region extruded from the side, and a crease carried through a region's copy
+REGIONS = (EdgeLoop(0), EdgeLoop(1), InsetRegion((5, 14), 0.2), CreaseRim(5, 10.0), ExtrudeRegion((5, 14), 0.6),
+           InsetRegion((1, 8, 12, 13), 0.15), ExtrudeRegion((1, 8, 12, 13), -0.3), ExtrudeRegion((3,), 0.4),
+           TranslateVertex(2, (0.05, -0.1, 0.02)))
+
+
+@pytest.mark.blender
+@pytest.mark.openscad
+@pytest.mark.freecad
+@pytest.mark.xdist_group("blender")
+def test_gsr_validate_passes_region_ops_in_every_host(gsr, tmp_path):
+    """Blender replays X and N with extrude_face_region and inset_region, FreeCAD's macro with its own copy of
+    their geometry; both must rebuild our control mesh at every step."""
+    result = surface_result(REGIONS)
+    mesh = result.control_mesh
+    assert mesh.topology.euler_characteristic == 2 and mesh.n_faces == 48
+    top = [(u, v) if u < v else (v, u) for u, v in zip(mesh.faces[5], mesh.faces[5][1:] + mesh.faces[5][:1])]
+    assert all(mesh.creases.get(e) == 10.0 for e in top)  # face 5's edges, on the copies, kept their crease
+    _validate_in_every_host(gsr, result, tmp_path, "regions")
+    script = (tmp_path / "regions_blender.py").read_text(encoding="utf-8")
+    assert "{'op': 'inset_region', 'faces': [1, 8, 12, 13], 'thickness': 0.15}" in script
+
+
+@pytest.mark.freecad
+def test_freecad_macro_replays_random_region_ops(tmp_path):
+    """The macro's own copy of X and N rebuilds every step of random region genomes (those whose patches meet the
+    export tolerance; random extrusions can pinch a patch) as ours."""
+    _need("freecad")
+    checked = 0
+    for i, genome in enumerate(region_genomes(12)):
+        result = surface_result(genome, size=1.0, center=(0.0, 0.0, 0.0))
+        try:
+            (path,) = FreecadMacroExporter().export(result, tmp_path, f"g{i}")
+        except ExportError:
+            continue
+        assert not failures(FreecadMacroExporter().validate(path, result)), i
+        checked += 1
+        if checked == 4:
+            break
+    assert checked == 4
 
 
 @pytest.mark.blender

@@ -378,7 +378,7 @@ def test_random_op_ranges():
 
 def test_random_op_rejects_bad_arguments():
     rng = np.random.default_rng(0)
-    for kinds in ("", "VX", "v"):
+    for kinds in ("", "VQ", "v"):
         with pytest.raises(ConfigError):
             random_op(rng, CUBE, D, kinds)
     for bad_scale in (0.0, -1.0, math.nan):

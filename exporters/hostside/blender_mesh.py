@@ -282,6 +282,102 @@ def hole(bm, V, F, face_a, face_b, quads):
     check(bm, V, F)
 
 
+def newell(V, cycle):
+    """The Newell vector of a face (gsr_cad's face normal, unnormalised) from the tracked vertices."""
+    nx = ny = nz = 0.0
+    px, py, pz = V[cycle[-1]].co
+    for i in cycle:
+        qx, qy, qz = V[i].co
+        nx, ny, nz = nx + (py - qy) * (pz + qz), ny + (pz - qz) * (px + qx), nz + (px - qx) * (py + qy)
+        px, py, pz = qx, qy, qz
+    return Vector((nx, ny, nz))
+
+
+def region_rim(F, faces):
+    """gsr_cad's rim of a region: its faces' half-edges whose other side is outside, in face and corner order,
+    and the rim vertices in order of first appearance."""
+    own, inside = owners(F), set(faces)
+    rim = [(u, v) for f in faces for u, v in zip(F[f], F[f][1:] + F[f][:1]) if own[(v, u)] not in inside]
+    starts = {u for u, _ in rim}
+    return rim, list(dict.fromkeys(c for f in faces for c in F[f] if c in starts))
+
+
+def renumber_region(V, F, faces, rim, rim_vertices, copies):
+    """Rim vertex copies appended in rim order, the region's faces onto them, one ring quad per rim edge."""
+    index = {}
+    for v in rim_vertices:
+        index[v] = len(V)
+        V.append(copies[v])
+    for f in faces:
+        F[f] = tuple(index.get(c, c) for c in F[f])
+    F.extend((u, v, index[v], index[u]) for u, v in rim)
+
+
+def extrude_region(bm, V, F, faces, distance):
+    """X: extrude a region of faces together (extrude_face_region), moved along the unit sum of their Newell
+    vectors; inner vertices keep their numbers on Blender's copies of them."""
+    rim, rim_vertices = region_rim(F, faces)
+    total = Vector((0.0, 0.0, 0.0))
+    for f in faces:
+        total += newell(V, F[f])
+    shift = total.normalized() * distance
+    region = [face_of(bm, V, F[f]) for f in faces]
+    verts = list(dict.fromkeys(c for f in faces for c in F[f]))
+    at = {tuple(V[c].co): c for c in verts}
+    edges = list({e for r in region for e in r.edges})
+    geom = bmesh.ops.extrude_face_region(bm, geom=region + edges + [V[c] for c in verts], use_keep_orig=False)["geom"]
+    new = [g for g in geom if isinstance(g, bmesh.types.BMVert)]
+    copies = {at[tuple(n.co)]: n for n in new}
+    bmesh.ops.translate(bm, vec=shift, verts=new)
+    on_rim = set(rim_vertices)
+    for c in verts:
+        if c not in on_rim:
+            V[c] = copies[c]
+    renumber_region(V, F, faces, rim, rim_vertices, copies)
+    check(bm, V, F)
+
+
+def inset_region(bm, V, F, faces, thickness):
+    """N: inset a region of faces together (inset_region); each new rim corner is then put where gsr_cad puts it:
+    ``thickness`` inside both rim edges at it, in the plane of the unit sum of the Newell vectors of the region's
+    faces there (Blender's even offset follows its own rule where the region bends)."""
+    rim, rim_vertices = region_rim(F, faces)
+    after, before = dict(rim), {v: u for u, v in rim}
+    places = {}
+    for v in rim_vertices:
+        n = Vector((0.0, 0.0, 0.0))
+        for f in faces:
+            if v in F[f]:
+                n += newell(V, F[f])
+        n.normalize()
+        p = V[v].co.copy()
+        a = n.cross(p - V[before[v]].co).normalized()
+        b = n.cross(V[after[v]].co - p).normalized()
+        m = (a + b).normalized()
+        places[v] = p + m * (thickness / m.dot(a))
+    at = {v: tuple(V[v].co) for v in rim_vertices}
+    region = [face_of(bm, V, F[f]) for f in faces]
+    bm.normal_update()
+    bmesh.ops.inset_region(bm, faces=region, use_boundary=True, use_even_offset=True, use_interpolate=True,
+                           use_relative_offset=False, use_edge_rail=False, thickness=thickness, depth=0.0,
+                           use_outset=False)
+    on_region = {x for r in region for x in r.verts}
+    outer = {}
+    for x in bm.verts:  # the outer rim stays where the rim was (Blender keeps the old vertex there or inside)
+        if x not in on_region:
+            outer.setdefault(tuple(x.co), x)
+    copies = {}
+    for v in rim_vertices:
+        out = outer.get(at[v])
+        inner = [e.other_vert(out) for e in out.link_edges if e.other_vert(out) in on_region] if out else []
+        if len(inner) != 1:
+            raise RuntimeError(f"inset_region: no single inner copy of vertex {v}")
+        V[v], copies[v] = out, inner[0]
+        copies[v].co = places[v]
+    renumber_region(V, F, faces, rim, rim_vertices, copies)
+    check(bm, V, F)
+
+
 def sync_creases(bm, V, rows):
     """Every edge's crease as gsr_cad carried it through the history (Blender's own ops copy creases their
     way): the listed ones, all others 0."""
@@ -293,7 +389,7 @@ def sync_creases(bm, V, rows):
 
 OPS = {"translate_vertex": translate_vertex, "translate_face": translate_face, "scale": scale, "extrude": extrude,
        "inset": inset, "edge_loop": edge_loop, "bevel": bevel, "crease": crease, "crease_rim": crease_rim,
-       "hole": hole}
+       "hole": hole, "extrude_region": extrude_region, "inset_region": inset_region}
 
 
 def snapshot(bm, label, collection):

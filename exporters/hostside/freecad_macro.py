@@ -184,8 +184,8 @@ def _unit(a):
     return [a[0] / n, a[1] / n, a[2] / n]
 
 
-def _normal(P, cycle):
-    """The unit Newell normal of a face."""
+def _newell(P, cycle):
+    """The Newell vector of a face (twice its area along its normal, for a flat face)."""
     nx = ny = nz = 0.0
     px, py, pz = P[cycle[-1]]
     for i in cycle:
@@ -194,7 +194,21 @@ def _normal(P, cycle):
         ny += (pz - qz) * (px + qx)
         nz += (px - qx) * (py + qy)
         px, py, pz = qx, qy, qz
-    return _unit([nx, ny, nz])
+    return [nx, ny, nz]
+
+
+def _normal(P, cycle):
+    """The unit Newell normal of a face."""
+    return _unit(_newell(P, cycle))
+
+
+def _mean_normal(P, cycles):
+    """The unit sum of the Newell vectors of faces (a region's normal)."""
+    total = [0.0, 0.0, 0.0]
+    for cycle in cycles:
+        n = _newell(P, cycle)
+        total = [total[0] + n[0], total[1] + n[1], total[2] + n[2]]
+    return _unit(total)
 
 
 def _along(P, cycle, distance):
@@ -235,6 +249,29 @@ def replay_inset(P, recipe, face, thickness):
         s = thickness / (m[0] * a[0] + m[1] * a[1] + m[2] * a[2])
         p = P[cycle[i]]
         inner.append([p[0] + s * m[0], p[1] + s * m[1], p[2] + s * m[2]])
+    P += inner
+
+
+def replay_extrude_region(P, recipe, faces, distance):
+    """X: the region's inner vertices move along its mean normal; copies of its rim vertices are appended there."""
+    n = _mean_normal(P, recipe["cycles"])
+    d = [n[0] * distance, n[1] * distance, n[2] * distance]
+    for c in recipe["inner"]:
+        P[c] = [P[c][0] + d[0], P[c][1] + d[1], P[c][2] + d[2]]
+    P += [[P[c][0] + d[0], P[c][1] + d[1], P[c][2] + d[2]] for c in recipe["rim"]]
+
+
+def replay_inset_region(P, recipe, faces, thickness):
+    """N: each rim corner's copy `thickness` inside both rim edges at it, in the plane of the region's mean
+    normal there."""
+    inner = []
+    for (u, v, w), cycles in zip(recipe["corners"], recipe["around"]):
+        n = _mean_normal(P, cycles)
+        a = _unit(_cross(n, _sub(P[v], P[u])))
+        b = _unit(_cross(n, _sub(P[w], P[v])))
+        m = _unit([a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+        s = thickness / (m[0] * a[0] + m[1] * a[1] + m[2] * a[2])
+        inner.append([P[v][0] + s * m[0], P[v][1] + s * m[1], P[v][2] + s * m[2]])
     P += inner
 
 
@@ -282,7 +319,8 @@ PARAMETERS = {"translate_vertex": {"delta": "App::PropertyVector"},
               "translate_face": {"distance": "App::PropertyFloat"},
               "scale": {"factor": "App::PropertyFloat"}, "extrude": {"distance": "App::PropertyFloat"},
               "inset": {"thickness": "App::PropertyFloat"}, "edge_loop": {},
-              "bevel": {"offset": "App::PropertyFloat"}, "crease": {}, "crease_rim": {}, "hole": {}}
+              "bevel": {"offset": "App::PropertyFloat"}, "crease": {}, "crease_rim": {}, "hole": {},
+              "extrude_region": {"distance": "App::PropertyFloat"}, "inset_region": {"thickness": "App::PropertyFloat"}}
 
 
 class MeshStep:
@@ -317,6 +355,7 @@ class MeshStep:
                 if name == "op":
                     continue
                 kind = PARAMETERS[op["op"]].get(name) or ("App::PropertyFloat" if isinstance(value, float)
+                                                          else "App::PropertyIntegerList" if isinstance(value, list)
                                                           else "App::PropertyInteger")
                 prop = name.capitalize()
                 obj.addProperty(kind, prop, "gsr_cad", "op parameter %s" % name)

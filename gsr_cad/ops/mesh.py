@@ -1,5 +1,5 @@
 """The seven surface modelling ops of the paper (letters V E L B I F S) on a closed polygon mesh, the crease
-ops C and R (edge sharpness) and the hole op H (not in the paper).
+ops C and R (edge sharpness), the hole op H and the region ops X and N (not in the paper).
 
 Each op is a frozen dataclass registered by name around one pure function of
 :mod:`gsr_cad.ops.mesh_kernel`, ``PolyMesh -> PolyMesh``; an op that cannot apply, or would leave a
@@ -38,6 +38,18 @@ face ``f`` having corners ``c_0 .. c_{k-1}``:
 
 * H ``hole(face_a, face_b)``: removes two facing faces with as many corners and bridges their rims with
   quads (a through-hole, genus + 1; see :func:`~gsr_cad.ops.mesh_kernel.hole` for the pairing and order).
+* X ``extrude_region(faces, distance)``: a region (a set of faces joined by edges, not the whole surface, meeting
+  each rim vertex in one fan; see :func:`~gsr_cad.ops.mesh_kernel.region_rim`) moves ``distance`` along the unit
+  sum of its faces' Newell vectors. The rim is walked as the region's faces' half-edges whose other side is
+  outside, faces in the order listed (ascending), corners in order; rim vertex ``j`` (first appearance in that
+  walk) is copied to new vertex ``n + j``; inner vertices keep their indices and move; the region's faces keep
+  their indices on the copies; one quad ``(u, v, v', u')`` per rim half-edge ``u -> v`` is appended in rim order
+  (Blender: ``extrude_face_region`` of the faces, their edges and vertices, ``use_keep_orig=False``, then a
+  translate). A region of one face is E.
+* N ``inset_region(faces, thickness)``: the same layout, the inner vertices staying, each rim copy ``thickness``
+  inside both rim edges at it (as I places a corner) in the plane of the unit sum of the Newell vectors of the
+  region's faces at that vertex (Blender: ``inset_region``; its even offset places corners where the region
+  bends by its own rule, so the script then moves them here). A region of one face is I.
 * C ``crease(edge, sharpness)``: sets the OpenSubdiv sharpness of an interior edge (``0`` smooth, ``10``
   infinitely sharp; Blender's crease is ``sqrt(sharpness / 10)``); nothing moves or is renumbered.
   R ``crease_rim(face, sharpness)``: the same on every interior edge of a face's rim (one designer action
@@ -46,7 +58,8 @@ face ``f`` having corners ``c_0 .. c_{k-1}``:
 Creases are carried through the other ops (:attr:`PolyMesh.creases` by vertex pair): an edge whose two
 vertices still share an edge keeps its sharpness (old vertices keep their indices). E: each cap edge also
 takes the sharpness of the rim edge it was extruded from (Blender copies the edge); I: the inner edges are
-smooth; L: both halves of a cut edge keep its sharpness (Blender's edge split copies it); B: the bevelled
+smooth; X: like E, each copied edge keeps the sharpness of its original; N: like I; L: both halves of a cut edge
+keep its sharpness (Blender's edge split copies it); B: the bevelled
 edge's sharpness is dropped, the edges at its ends keep theirs on their shortened edge.
 
 :func:`random_op` draws ops with parameters scaled by the target's bounding-box diagonal (see
@@ -69,9 +82,10 @@ from .base import Op, register
 from .mesh_conn import mesh_view
 
 __all__ = [
-    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "CreaseRim", "EdgeLoop", "Hole", "Extrude", "Inset", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale",
-    "TranslateFace", "TranslateVertex", "bevel", "crease", "crease_rim", "hole", "moves_to", "edge_loop", "extrude", "inset", "perturb_op", "random_op",
-    "scale", "translate_face", "translate_vertex",
+    "ALL_OPS_BY_LETTER", "Bevel", "Crease", "CreaseRim", "EdgeLoop", "Extrude", "ExtrudeRegion", "Hole", "Inset",
+    "InsetRegion", "MeshOp", "OPS_BY_LETTER", "OpRanges", "PAPER_RANGES", "Scale", "TranslateFace", "TranslateVertex",
+    "bevel", "crease", "crease_rim", "edge_loop", "extrude", "extrude_region", "hole", "inset", "inset_region",
+    "moves_to", "perturb_op", "random_op", "scale", "translate_face", "translate_vertex",
 ]
 
 translate_vertex = K.translate_vertex
@@ -84,6 +98,8 @@ scale = K.scale
 crease = K.crease
 crease_rim = K.crease_rim
 hole = K.hole
+extrude_region = K.extrude_region
+inset_region = K.inset_region
 
 
 def _element(value, what: str) -> int:
@@ -115,6 +131,16 @@ def _vector(value, what: str) -> tuple[float, float, float]:
     return (x + 0.0, y + 0.0, z + 0.0)
 
 
+def _faces(value, what: str) -> tuple[int, ...]:
+    """A region's faces: a non-empty list of distinct face indices, kept sorted (one op per region)."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise InputError(f"{what} must be a list of face indices, got {value!r}")
+    out = tuple(sorted(_element(v, what) for v in value))
+    if not out or len(set(out)) != len(out):
+        raise InputError(f"{what} must list at least one face, each once, got {value!r}")
+    return out
+
+
 def _positive(value, what: str) -> float:
     return _number(value, what, positive=True)
 
@@ -134,8 +160,9 @@ def _sharp_text(s: float) -> str:
     return "infinitely sharp" if s >= SHARPNESS_INFINITE else f"sharpness {_fmt(s)}"
 
 
-_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "face_a": _element, "face_b": _element, "delta": _vector, "distance": _number,
-                 "offset": _positive, "thickness": _positive, "factor": _positive, "sharpness": _sharpness}
+_FIELD_CHECKS = {"vertex": _element, "face": _element, "edge": _element, "face_a": _element, "face_b": _element,
+                 "faces": _faces, "delta": _vector, "distance": _number, "offset": _positive, "thickness": _positive,
+                 "factor": _positive, "sharpness": _sharpness}
 """How :class:`MeshOp` normalises each op field, by field name (InputError on a malformed value)."""
 
 
@@ -323,12 +350,47 @@ class Hole(MeshOp):
         return f"hole through faces {self.face_a} and {self.face_b}"
 
 
+@register
+@dataclasses.dataclass(frozen=True)
+class ExtrudeRegion(MeshOp):
+    """X: extrude a region of faces together (its inner vertices move, its rim is copied) along its mean normal."""
+
+    name: ClassVar[str] = "extrude_region"
+    letter: ClassVar[str] = "X"
+    faces: tuple[int, ...]
+    distance: float
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return extrude_region(state, self.faces, self.distance)
+
+    def describe(self) -> str:
+        return f"extrude faces {list(self.faces)} by {_fmt(self.distance)} along their mean normal"
+
+
+@register
+@dataclasses.dataclass(frozen=True)
+class InsetRegion(MeshOp):
+    """N: inset a region of faces together (new rim vertices ``thickness`` inside the old rim)."""
+
+    name: ClassVar[str] = "inset_region"
+    letter: ClassVar[str] = "N"
+    faces: tuple[int, ...]
+    thickness: float
+
+    def apply(self, state: PolyMesh) -> PolyMesh:
+        return inset_region(state, self.faces, self.thickness)
+
+    def describe(self) -> str:
+        return f"inset faces {list(self.faces)} together by {_fmt(self.thickness)}"
+
+
 OPS_BY_LETTER: dict[str, type[MeshOp]] = {
     cls.letter: cls for cls in (TranslateVertex, Extrude, EdgeLoop, Bevel, Inset, TranslateFace, Scale)
 }
 """The paper's seven ops."""
-ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "R": CreaseRim, "H": Hole}
-"""Every surface op :func:`random_op` can draw: the paper's, C, R and H."""
+ALL_OPS_BY_LETTER: dict[str, type[MeshOp]] = {**OPS_BY_LETTER, "C": Crease, "R": CreaseRim, "H": Hole,
+                                               "X": ExtrudeRegion, "N": InsetRegion}
+"""Every surface op :func:`random_op` can draw: the paper's, C, R, H, X and N."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -344,7 +406,9 @@ class OpRanges:
       slides along those edges, so a longer one is always invalid);
     * I: ``thickness`` uniform in ``thickness`` times the face's smallest centroid-to-edge distance;
     * C, R: infinitely sharp with probability ``infinite``, else ``sharpness`` uniform in ``sharpness``;
-    * H: the first face uniform, the second the nearest one facing it (:func:`_hole_faces`).
+    * H: the first face uniform, the second the nearest one facing it (:func:`_hole_faces`);
+    * X, N: a region of up to ``region_faces`` faces grown from a uniform face (:func:`_random_region`), the
+      distance or thickness as for E or I (the thickness on the region's smallest face).
     """
 
     move: float = 0.1
@@ -356,6 +420,7 @@ class OpRanges:
     thickness: tuple[float, float] = (0.05, 0.6)
     sharpness: tuple[float, float] = (0.5, 3.0)
     infinite: float = 0.5
+    region_faces: int = 4
 
     def __post_init__(self) -> None:
         for name in ("move", "extrude", "face_move"):
@@ -369,6 +434,8 @@ class OpRanges:
             raise ConfigError(f"op range sharpness must satisfy 0 < low <= high <= 10, got {(lo, hi)!r}")
         if not (math.isfinite(self.max_factor) and self.max_factor >= 1.0):
             raise ConfigError(f"op range max_factor must be a finite number >= 1, got {self.max_factor!r}")
+        if isinstance(self.region_faces, bool) or not isinstance(self.region_faces, int) or self.region_faces < 1:
+            raise ConfigError(f"op range region_faces must be an integer >= 1, got {self.region_faces!r}")
         for name in ("offset", "thickness"):
             lo, hi = getattr(self, name)
             if not 0.0 < lo <= hi:
@@ -426,6 +493,21 @@ def _hole_faces(view, face: int) -> tuple[int, int]:
     return face, partner
 
 
+def _random_region(rng: np.random.Generator, conn, size: int) -> tuple[int, ...]:
+    """Up to ``size`` faces (the count uniform in ``1..size``): a uniform face, then uniform picks among the faces
+    sharing an edge with those taken (the region op checks the rest)."""
+    want = int(rng.integers(1, size + 1))
+    region = [int(rng.integers(conn.n_faces))]
+    while len(region) < want:
+        taken = set(region)
+        rims = sorted({g for f in region for u, v in zip(conn.faces[f], conn.faces[f][1:] + conn.faces[f][:1])
+                       if (g := conn.half.get((v, u), -1)) >= 0 and g not in taken})
+        if not rims:
+            break
+        region.append(rims[int(rng.integers(len(rims)))])
+    return tuple(region)
+
+
 def random_ops(rng: np.random.Generator, mesh: PolyMesh, n: int, kinds: str = "VELBIFS",
                scale: float | None = None, tries: int | None = None) -> tuple[tuple[MeshOp, ...], PolyMesh]:
     """``n`` random ops (:func:`random_op`, ``scale`` the diagonal, else the current mesh's) that apply in turn
@@ -472,6 +554,13 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
     conn = view.conn
     if kind == "H":
         return Hole(*_hole_faces(view, int(rng.integers(conn.n_faces))))
+    if kind in "XN":
+        region = _random_region(rng, conn, ranges.region_faces)
+        if kind == "X":
+            distance = rng.uniform(0.05, 1.0) * ranges.extrude * scale
+            return ExtrudeRegion(region, float(-distance if rng.random() < ranges.inward else distance))
+        size = min(_face_inradius(view.P, conn.faces[f]) for f in region) or scale
+        return InsetRegion(region, float(rng.uniform(*ranges.thickness) * size))
     if kind in "EIF":
         face = int(rng.integers(conn.n_faces))
         if kind == "E":
@@ -503,8 +592,8 @@ def random_op(rng: np.random.Generator, mesh: PolyMesh, scale: float, kinds: str
 def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02, log_sigma: float = 0.1) -> MeshOp:
     """The same kind of op on the same element with its parameters nudged (the surface GA's specific mutation).
 
-    Lengths (V delta per axis, E and F distances) move by ``N(0, (rel * scale)^2)``; positive amounts
-    (B offset, I thickness, a semi-sharp C sharpness, at most 10) are multiplied by ``exp(N(0, log_sigma^2))``
+    Lengths (V delta per axis, E, X and F distances) move by ``N(0, (rel * scale)^2)``; positive amounts
+    (B offset, I and N thickness, a semi-sharp C sharpness, at most 10) are multiplied by ``exp(N(0, log_sigma^2))``
     and the S factor by ``exp(N(0, rel^2))``, so they stay positive. L, H and an infinitely sharp C come back
     unchanged.
     """
@@ -523,6 +612,10 @@ def perturb_op(op: Op, rng: np.random.Generator, scale: float, rel: float = 0.02
         return Bevel(op.edge, op.offset * float(np.exp(rng.normal(0.0, log_sigma))))
     if isinstance(op, Inset):
         return Inset(op.face, op.thickness * float(np.exp(rng.normal(0.0, log_sigma))))
+    if isinstance(op, ExtrudeRegion):
+        return ExtrudeRegion(op.faces, op.distance + float(rng.normal(0.0, sigma)))
+    if isinstance(op, InsetRegion):
+        return InsetRegion(op.faces, op.thickness * float(np.exp(rng.normal(0.0, log_sigma))))
     if isinstance(op, Scale):
         return Scale(op.factor * float(np.exp(rng.normal(0.0, rel))))
     if isinstance(op, (EdgeLoop, Hole)):

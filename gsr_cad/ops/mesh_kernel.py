@@ -549,6 +549,154 @@ def inset(mesh: PolyMesh, face: int, thickness: float) -> PolyMesh:
     return _cap_and_ring(what, view, face, inset_points(view.P, cyc, thickness, n, what), n, False)
 
 
+# --- X, N: a region of faces moved onto new rim vertices, joined by a ring of quads -------------------------
+
+def region_rim(view: MeshView, faces: Sequence[int], what: str) -> tuple[list[tuple[int, int]], list[int], Vec]:
+    """Check that ``faces`` is a region the region ops accept and describe its rim.
+
+    A region is a non-empty, edge-connected set of faces that is not the whole surface, touches no boundary of
+    the mesh, and meets each of its rim vertices in one fan of faces (no two regions touching at a corner).
+    Returns ``(rim half-edges (u, v) of the region's faces in the order met walking the faces in the given order
+    and their corners, rim vertices in order of first appearance in that walk, the unit sum of the faces' Newell
+    vectors)``.
+    """
+    conn = view.conn
+    if not faces:
+        raise OpError(f"{what}: the region has no face")
+    inside = set()
+    for f in faces:
+        inside.add(_index(f, conn.n_faces, what, "face"))
+    if len(inside) != len(faces):
+        raise OpError(f"{what}: a face is listed twice")
+    half = conn.half
+    rim: list[tuple[int, int]] = []
+    links: dict[int, list[int]] = {f: [] for f in faces}
+    for f in faces:
+        cyc = conn.faces[f]
+        for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+            g = half.get((v, u), -1)
+            if g < 0:
+                raise OpError(f"{what}: face {f} is on the boundary of the mesh")
+            if g in inside:
+                links[f].append(g)
+            else:
+                rim.append((u, v))
+    if not rim:
+        raise OpError(f"{what}: the region is the whole surface")
+    seen, todo = {faces[0]}, [faces[0]]
+    while todo:
+        for g in links[todo.pop()]:
+            if g not in seen:
+                seen.add(g)
+                todo.append(g)
+    if len(seen) != len(faces):
+        raise OpError(f"{what}: the region's faces are not joined by edges")
+    starts = [u for u, _ in rim]
+    if len(set(starts)) != len(starts):
+        raise OpError(f"{what}: the region meets itself at a vertex")
+    on_rim = set(starts)
+    rim_vertices = list(dict.fromkeys(c for f in faces for c in conn.faces[f] if c in on_rim))
+    return rim, rim_vertices, _mean_normal(view, faces, f"{what}: the region's faces have no mean normal")
+
+
+def _mean_normal(view: MeshView, faces: Iterable[int], error: str) -> Vec:
+    """The unit sum of the Newell vectors of ``faces``; OpError with ``error`` when it is zero."""
+    sx = sy = sz = 0.0
+    for f in faces:
+        nx, ny, nz = _face_newell(view, f)
+        sx, sy, sz = sx + nx, sy + ny, sz + nz
+    n = _unit((sx, sy, sz))
+    if n is None:
+        raise OpError(error)
+    return n
+
+
+def _region_result(what: str, view: MeshView, faces: Sequence[int], rim: list[tuple[int, int]],
+                   rim_vertices: list[int], P: list[list[float]], new_points: list[list[float]],
+                   refs: dict[int, Vec | None], moved: tuple[int, ...], cap_creases: bool) -> PolyMesh:
+    """The region's faces on the appended rim vertices (``new_points``, in ``rim_vertices`` order), one quad
+    ``(u, v, v', u')`` per rim half-edge appended in rim order; checked and built by :func:`_finish`."""
+    conn = view.conn
+    base = len(P)
+    copy = {v: base + j for j, v in enumerate(rim_vertices)}
+    out = list(conn.faces)
+    for f in faces:
+        out[f] = tuple(copy.get(c, c) for c in conn.faces[f])
+    first = len(out)
+    out.extend((u, v, copy[v], copy[u]) for u, v in rim)
+    touched = [*faces, *range(first, first + len(rim))]
+    newell = view.newell + [None] * len(rim)
+    for f in faces:
+        newell[f] = None
+    inherit = None
+    if cap_creases and view.mesh._creases is not None:
+        inherit = {}
+        for f in faces:
+            cyc = conn.faces[f]
+            for u, v in zip(cyc, cyc[1:] + cyc[:1]):
+                if u in copy or v in copy:
+                    inherit[(copy.get(u, u), copy.get(v, v))] = (u, v)
+    return _finish(what, view, P + new_points, out, touched, refs, _diagonal(view), newell, moved, None, inherit)
+
+
+def extrude_region(mesh: PolyMesh, faces: Sequence[int], distance: float) -> PolyMesh:
+    """X: move a region of faces (see :func:`_region`) by ``distance`` along its mean normal (the unit sum of
+    its faces' Newell vectors), its rim vertices copied and joined to the old rim by one quad per rim edge."""
+    what = f"extrude_region {list(faces)}"
+    view = mesh_view(mesh)
+    rim, rim_vertices, n = region_rim(view, faces, what)
+    dx, dy, dz = n[0] * distance, n[1] * distance, n[2] * distance
+    P = list(view.P)
+    on_rim = set(rim_vertices)
+    inner = tuple(dict.fromkeys(c for f in faces for c in view.conn.faces[f] if c not in on_rim))
+    for c in inner:
+        p = P[c]
+        P[c] = [p[0] + dx, p[1] + dy, p[2] + dz]
+    new_points = [[P[c][0] + dx, P[c][1] + dy, P[c][2] + dz] for c in rim_vertices]
+    refs = {f: _unit(_face_newell(view, f)) for f in faces}
+    return _region_result(what, view, faces, rim, rim_vertices, P, new_points, refs, inner, True)
+
+
+def _inset_corner(P: list[list[float]], u: int, v: int, w: int, thickness: float, n: Vec, what: str) -> list[float]:
+    """Corner ``v`` between edges ``u -> v`` and ``v -> w`` moved as :func:`inset_points` moves a face's corner."""
+    a = _unit(_cross(n, _sub(P[v], P[u])))
+    b = _unit(_cross(n, _sub(P[w], P[v])))
+    if a is None or b is None:
+        raise OpError(f"{what}: a rim edge at vertex {v} is parallel to the region's normal")
+    m = _unit((a[0] + b[0], a[1] + b[1], a[2] + b[2]))
+    cos_half = _dot(m, a) if m is not None else 0.0
+    if cos_half < _INSET_MIN_COS:
+        raise OpError(f"{what}: the rim has a spike at vertex {v} (under {INSET_MIN_DEG:g} degrees)")
+    s = thickness / cos_half
+    p = P[v]
+    return [p[0] + s * m[0], p[1] + s * m[1], p[2] + s * m[2]]
+
+
+def inset_region(mesh: PolyMesh, faces: Sequence[int], thickness: float) -> PolyMesh:
+    """N: shrink a region of faces (see :func:`_region`) onto new rim vertices, each ``thickness`` inside the
+    rim as :func:`inset_points` places a face's corners, in the plane of the unit sum of the Newell vectors
+    of the region's faces at that vertex; inner vertices stay. One ring quad per rim edge."""
+    what = f"inset_region {list(faces)}"
+    if not thickness > 0.0:
+        raise OpError(f"{what}: the thickness must be positive")
+    view = mesh_view(mesh)
+    rim, rim_vertices, _ = region_rim(view, faces, what)
+    conn = view.conn
+    inside = set(faces)
+    after = dict(rim)
+    before = {v: u for u, v in rim}
+    new_points = []
+    for v in rim_vertices:
+        n = _mean_normal(view, (f for f in conn.vertex_faces(v) if f in inside),
+                         f"{what}: the region has no normal at vertex {v}")
+        new_points.append(_inset_corner(view.P, before[v], v, after[v], thickness, n, what))
+    refs: dict[int, Vec | None] = {f: _unit(_face_newell(view, f)) for f in faces}
+    first = conn.n_faces
+    owner = [conn.half[e] for e in rim]
+    refs.update({first + i: refs[f] for i, f in enumerate(owner)})
+    return _region_result(what, view, faces, rim, rim_vertices, list(view.P), new_points, refs, (), False)
+
+
 # --- L: edge loop ----------------------------------------------------------------------------------------
 
 def edge_ring(conn: MeshConn, edge: int) -> tuple[list[int], list[tuple[int, int]], list[int], bool]:

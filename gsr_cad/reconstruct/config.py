@@ -25,7 +25,8 @@ UNITS: dict[str, str] = {"model": "model units", "mm": "mm", "cm": "cm", "m": "m
 OP_KINDS: dict[str, str] = {
     "V": "vertex translate", "E": "face extrude", "L": "edge loop", "B": "edge bevel", "I": "face inset",
     "F": "face translate", "S": "scale", "C": "edge crease (sharpness)", "R": "face rim crease",
-    "H": "through-hole between two facing faces",
+    "H": "through-hole between two facing faces", "X": "extrude a region of faces together",
+    "N": "inset a region of faces together",
 }
 """The surface op letters ``op_kinds`` may hold, with what each does (the help text lists them from here)."""
 
