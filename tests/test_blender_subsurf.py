@@ -16,15 +16,15 @@ from scipy.spatial import cKDTree
 import pytest
 from gsr_cad.exporters.blender import CREASE_QUALITY
 from gsr_cad.exporters.hosts import find_host, run_blender
+from test_mesh_ops import seeded_genomes
 from test_region_ops import region_genomes
 from test_subdivision import MESHES, OPEN, match_meshes
 
 from gsr_cad import genome as genome_mod
-from gsr_cad.errors import OpError
 from gsr_cad.geometry.polymesh import PolyMesh, unit_cube
 from gsr_cad.geometry.subdivision import CatmullClark, get_catmull_clark
 from gsr_cad.geometry.validation import mesh_report, validate_mesh
-from gsr_cad.ops.mesh import Hole, Inset, random_op
+from gsr_cad.ops.mesh import Hole, Inset
 
 pytestmark = [pytest.mark.blender, pytest.mark.xdist_group("blender")]  # one Blender run under --dist loadgroup
 
@@ -216,23 +216,10 @@ GENOMES = 200
 def creased_genomes() -> list[tuple]:
     """GENOMES seeded random genomes on the unit cube over every surface op (C, R and H included; both caps
     inset first), each building at least one hole and one crease in at most 80 faces."""
-    out = []
-    seed = 0
-    while len(out) < GENOMES:
-        rng = np.random.default_rng(seed)
-        seed += 1
-        ops = [Inset(4, 0.2), Inset(5, 0.2)]
-        state = ops[1].apply(ops[0].apply(unit_cube()))
-        for _ in range(12):
-            op = random_op(rng, state, state.diagonal, "VELBIFSCRHII")
-            try:
-                state = op.apply(state)
-            except OpError:
-                continue
-            ops.append(op)
-        if state.topology.euler_characteristic < 2 and state.creases and state.n_faces <= 80:
-            out.append(tuple(ops))
-    return out
+    def holed(ops, mesh) -> bool:
+        return mesh.topology.euler_characteristic < 2 and bool(mesh.creases) and mesh.n_faces <= 80
+
+    return seeded_genomes(GENOMES, (Inset(4, 0.2), Inset(5, 0.2)), "VELBIFSCRHII", 12, holed)
 
 
 def creased_genome_meshes() -> list[PolyMesh]:

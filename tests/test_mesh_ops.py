@@ -247,6 +247,28 @@ def _check_conn(mesh: PolyMesh) -> None:
                                   mesh.topology.edge_faces)
 
 
+def seeded_genomes(count: int, base: tuple, kinds: str, draws: int, keep, first_seed: int = 0) -> list[tuple]:
+    """``count`` genomes: ``base`` on the unit cube, then ``draws`` random ops of ``kinds`` (those that apply kept),
+    one ``numpy`` seed per try from ``first_seed`` on; a try is kept when ``keep(ops, mesh)`` holds."""
+    out = []
+    seed = first_seed
+    while len(out) < count:
+        rng = np.random.default_rng(seed)
+        seed += 1
+        state = genome_mod.replay(unit_cube(), base)
+        ops = list(base)
+        for _ in range(draws):
+            op = random_op(rng, state, state.diagonal, kinds)
+            try:
+                state = op.apply(state)
+            except OpError:
+                continue
+            ops.append(op)
+        if keep(ops, state):
+            out.append(tuple(ops))
+    return out
+
+
 def random_history(seed: int, length: int, kinds: str, sound: bool = True):
     """Up to ``length`` valid random ops on the cube, tried ``4 * length`` times: ``(op, before, after)`` each
     (each result checked by :func:`assert_sound` with ``sound``)."""

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_mesh_ops import random_history
+from test_mesh_ops import random_history, seeded_genomes
 
 from gsr_cad import genome as genome_mod
 from gsr_cad.errors import InputError, OpError
@@ -160,22 +160,8 @@ def test_an_edge_loop_after_region_ops_still_applies():
 def region_genomes(count: int) -> list[tuple]:
     """``count`` seeded random genomes on the unit cube cut by two loops, over the paper's ops and the region
     ops X and N (regions of up to four faces), each with at least one X and one N on two or more faces."""
-    out = []
-    seed = 0
-    base = (EdgeLoop(0), EdgeLoop(1))
-    while len(out) < count:
-        rng = np.random.default_rng(10_000 + seed)
-        seed += 1
-        state = genome_mod.replay(unit_cube(), base)
-        ops = list(base)
-        for _ in range(10):
-            op = random_op(rng, state, state.diagonal, "VELBIFSXNXN")
-            try:
-                state = op.apply(state)
-            except OpError:
-                continue
-            ops.append(op)
-        wide = {op.letter for op in ops if op.letter in "XN" and len(op.faces) >= 2}
-        if wide == {"X", "N"} and state.n_faces <= 90:
-            out.append(tuple(ops))
-    return out
+    def wide(ops, mesh) -> bool:
+        return ({op.letter for op in ops if op.letter in "XN" and len(op.faces) >= 2} == {"X", "N"}
+                and mesh.n_faces <= 90)
+
+    return seeded_genomes(count, (EdgeLoop(0), EdgeLoop(1)), "VELBIFSXNXN", 10, wide, first_seed=10_000)
