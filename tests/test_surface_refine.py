@@ -757,10 +757,10 @@ def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monke
     problem = SurfaceProblem(target, config, box_template(target))
     moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: its second path, free corners
     assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 5, [], None, False) is not None
-    assert len(started) == 1 and started[0][2] == {"free_corners": True}
+    assert len(started) == 1 and started[0][2] == {"free_corners": True, "genome": ()}
     winner = (Extrude(2, 0.3),)  # a protrusion the blob does not have
     grown = surface_module._refined(problem, winner, 1e-9, None, [], None, False)
-    assert len(started) == 2 and grown is not None and started[1][2] == {"free_corners": False}
+    assert len(started) == 2 and grown is not None and started[1][2] == {"free_corners": False, "genome": ()}
     grower, (goal, deadline, faces, _), _ = started[1]
     assert goal == 1e-9 and deadline is None and faces == 24
     seen: list[tuple[int, float]] = []

@@ -68,34 +68,36 @@ def _stopped() -> bool:
 
 
 def _grow(problem: Any, goal: float, wall_deadline: float | None, max_faces: int,
-          tail: Callable[[int], float] | None, free_corners: bool = False
+          tail: Callable[[int], float] | None, free_corners: bool = False, genome: tuple = ()
           ) -> tuple[tuple, list[Level], list[tuple[int, float, tuple]]]:
-    """In the worker: the template's refinement until the deadline (``time.time()`` seconds), with the front's
-    points it recorded as ``(control vertices, distance, genome)``."""
+    """In the worker: the refinement of ``genome`` (default the template) until the deadline (``time.time()``
+    seconds), with the front's points it recorded as ``(control vertices, distance, genome)``."""
     deadline = None if wall_deadline is None else time.perf_counter() + (wall_deadline - time.time())
     found: list[tuple[int, float, tuple]] = []
 
     def record(mesh: Any, cost: float, genome: tuple) -> None:
         found.append((mesh.n_vertices, cost, genome))
 
-    final, levels = refine(problem, (), goal, deadline, max_faces, record, _stopped, tail, free_corners=free_corners)
+    final, levels = refine(problem, genome, goal, deadline, max_faces, record, _stopped, tail,
+                           free_corners=free_corners)
     return final, levels, found
 
 
 class TemplatePath:
     """The template's refinement on ``problem`` (a :class:`~gsr_cad.reconstruct.surface.SurfaceProblem`, which
     must pickle) started in a worker process; :meth:`result` waits for it. ``deadline``: a ``perf_counter``
-    value or None; ``free_corners``: every fit of the path lets corners turn concave (``refine``'s strategy)."""
+    value or None; ``free_corners``: every fit of the path lets corners turn concave (``refine``'s strategy);
+    ``genome``: where the path starts instead of the bare template (a leaded part's body and legs)."""
 
     def __init__(self, problem: Any, goal: float, deadline: float | None, max_faces: int,
-                 tail: Callable[[int], float] | None, free_corners: bool = False) -> None:
+                 tail: Callable[[int], float] | None, free_corners: bool = False, genome: tuple = ()) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
         self._stop = context.Event()
         self._pool = concurrent.futures.ProcessPoolExecutor(1, mp_context=context, initializer=_install,
                                                             initargs=(self._stop,))
         self._goal = goal
         wall = None if deadline is None else time.time() + (deadline - time.perf_counter())
-        self._future = self._pool.submit(_grow, problem, goal, wall, max_faces, tail, free_corners)
+        self._future = self._pool.submit(_grow, problem, goal, wall, max_faces, tail, free_corners, genome)
 
     def met(self) -> bool:
         """Whether the worker is done and its last cage is within the goal (the winner's growth then ends: within

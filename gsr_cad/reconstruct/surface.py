@@ -95,6 +95,7 @@ from ..ops.rewrite import simplify_history
 from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
+from .leads import LEAD_PATH, lead_start
 from .placement import Placement, fit_template, place_cube
 from .refine import Level, _inradius, _reach, refine, snapped_within
 from .result import MAX_OPS, Result
@@ -1482,6 +1483,7 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "refinement": [] if growth is None else growth.levels,
         "refined_from": None if growth is None or not growth.levels else growth.path,
         "refine_workers": 0 if growth is None else growth.workers,
+        "lead_start": None if growth is None else growth.leads,
         "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
@@ -1658,8 +1660,9 @@ class Growth(NamedTuple):
     cost: float
     front: list[tuple[int, float, tuple]]
     levels: list[dict[str, Any]]
-    path: str = "winner"  # whose growth the genome is: the search's winner's, or the placed template's
+    path: str = "winner"  # whose growth the genome is: the search's winner's, the placed template's or LEAD_PATH
     workers: int = 1  # processes it grew on
+    leads: dict[str, Any] | None = None  # the leads found and the gate's figures (module leads), where looked for
 
 
 def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
@@ -1747,13 +1750,22 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         genome = ()
     path = "winner" if genome else "template"
     stopped = (lambda: False) if should_stop is None else should_stop
+    # a leaded part's second path starts from its body and legs, where they gain on the body alone (module leads)
+    lead = (lead_start(grower, deadline) if quads and not stopped() and set("VLIE") <= set(config.op_kinds)
+            else None)
+    other_start = lead[0] if lead is not None else ()
     # with a second CPU the template grows beside the winner (module second_path); else after it, in time left.
     # A winner of vertex moves only grows from the template's own structure: beside it, the template grows with
     # every fit's corners free (another strategy, closer on some chains, behind on others)
     shaped = any(not isinstance(op, TranslateVertex) for op in genome)
-    other = (TemplatePath(grower, goal, deadline, faces, tail, free_corners=not shaped) if quads and not stopped()
+    other = (TemplatePath(grower, goal, deadline, faces, tail, free_corners=not shaped and not other_start,
+                          genome=other_start) if quads and not stopped()
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
+    other_path = LEAD_PATH if other_start else "template"
+    if other is None and other_start:
+        # one process: the legs grow first (they gained on the body alone), the winner in the time left
+        genome, other_start, path, other_path = other_start, genome, LEAD_PATH, path
     try:
         final, levels = refine(grower, genome, goal, deadline, faces, level,
                                stopped if other is None else lambda: stopped() or other.met(), tail, fills)
@@ -1771,7 +1783,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
             return lv.cost > goal, (lv.control.n_vertices if lv.cost <= goal else 0), lv.cost
 
         if rank(grown[1][-1]) < rank(levels[-1]):
-            final, levels, path = grown[0], grown[1], "template" if shaped else "template, free corners"
+            final, levels = grown[0], grown[1]
+            path = other_path if shaped or other_start else "template, free corners"
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
     last = levels[-1]
     free = bool(genome) and quads and other is None and not stopped()
@@ -1780,16 +1793,17 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
         # and the closer of the two stands (airplane: the search's bevelled cube, 10 vertices, two pentagons, no
         # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
-        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail, fills)
+        again, more = refine(grower, other_start, goal, deadline, faces, level, should_stop, tail, fills)
         if more[-1].cost < last.cost:
-            final, levels, path = again, more, "template"
+            final, levels, path = again, more, other_path
     elif free and last.cost <= goal and left > REACHED_SHARE and last.control.n_faces > grower.template.n_faces:
         # the goal met early: the template grows too, up to a cage simpler than the winner's, and the simpler
         # of the two that meet the goal stands; both paths are points of the front (bone: the search's 24-vertex
         # winner reached 2e-3 of the diagonal at 258 vertices, the placed cube at 114)
-        again, more = refine(grower, (), goal, deadline, last.control.n_faces - 1, level, should_stop, tail, fills)
+        again, more = refine(grower, other_start, goal, deadline, last.control.n_faces - 1, level, should_stop, tail,
+                             fills)
         if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
-            final, levels, path = again, more, "template"
+            final, levels, path = again, more, other_path
     # the kept path's first, all of them for at most config.refine_fill of the refinement's fit rounds (a run that met
     # its goal early does not spend the rest of its budget on them: bone 176 s -> 286 s with no limit); counted, not
     # timed, so that a seed repeats the front
@@ -1799,7 +1813,8 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds, "proposal": lv.kind}
             for lv in levels]
-    return Growth(final, levels[-1].cost, front(found), rows, path, 1 if other is None else 2)
+    return Growth(final, levels[-1].cost, front(found), rows, path, 1 if other is None else 2,
+                  None if lead is None else lead[1])
 
 
 def template_from_config(config: dict[str, Any]) -> PolyMesh:

@@ -1,0 +1,146 @@
+"""Leaded parts: the body and its legs are found in an OpenCascade part, and the start built from them replays,
+fits and pays where a plain box does not."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from gsr_cad.reconstruct.config import SurfaceConfig
+from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
+from gsr_cad.reconstruct.leads import find_leads, lead_genomes, lead_start
+from gsr_cad.ops.mesh import Extrude
+from gsr_cad.reconstruct.refine import refine
+from gsr_cad.reconstruct.surface import SurfaceProblem, place_template, reconstruct_surface
+
+BODY = (6.0, 4.0, 2.0)
+PIN = (0.6, 1.5, 0.4)  # width (x), reach beyond the body (y), height (z)
+PIN_X = (-1.8, 1.8)  # two pins on each long side
+
+
+def _part(tmp_path, pins: bool = True) -> SurfaceTarget:
+    """A box body with four straight pins, fused and tessellated by OpenCascade (not by our kernel)."""
+    bd = pytest.importorskip("build123d", reason="the cad extra (build123d) builds the part")
+    shape = bd.Box(*BODY)
+    if pins:
+        for x in PIN_X:
+            for side in (-1, 1):
+                y = side * (BODY[1] / 2 + PIN[1] / 2 - 0.1)
+                shape = shape + bd.Pos(x, y, -0.4) * bd.Box(PIN[0], PIN[1] + 0.2, PIN[2])
+    path = tmp_path / ("pins.stl" if pins else "box.stl")
+    bd.export_stl(shape, str(path), tolerance=1e-3, angular_tolerance=0.1)
+    return surface_target(path)
+
+
+def _problem(target: SurfaceTarget) -> SurfaceProblem:
+    config = SurfaceConfig()
+    template = place_template("cube", target, config).mesh
+    problem = SurfaceProblem(target, dataclasses.replace(config, max_target_points=4000), template, exact_back=True,
+                             exact_facets=True)
+    problem.max_faces = config.refine_max_faces  # as the refinement has it
+    return problem
+
+
+def test_the_pins_of_a_part_are_found_where_they_leave_the_body(tmp_path):
+    found = find_leads(_part(tmp_path))
+    assert found is not None and len(found.leads) == 4
+    pitch = max(BODY[0], BODY[1] + 2 * PIN[1]) / 120
+    for start, tip in found.leads:
+        side = np.sign(start[1])
+        assert abs(abs(start[1]) - BODY[1] / 2) < 4 * pitch  # at the body's wall
+        assert abs(tip[1] - side * (BODY[1] / 2 + PIN[1])) < 2 * pitch  # the pin's end
+        assert min(abs(start[0] - x) for x in PIN_X) < PIN[0] / 2
+    lo, hi = found.body.min(axis=0), found.body.max(axis=0)
+    assert np.allclose((hi - lo)[[0, 2]], np.array(BODY)[[0, 2]], atol=3 * pitch)
+    assert BODY[1] - 3 * pitch < (hi - lo)[1] < BODY[1] + 0.5  # the opening's ball rounds into the pins' roots
+
+
+def test_a_box_has_no_leads_and_a_cloud_is_not_looked_at(tmp_path):
+    box = _part(tmp_path, pins=False)
+    assert find_leads(box) is None
+    assert find_leads(SurfaceTarget(box.points, None, "cloud")) is None
+
+
+def test_an_open_mesh_is_not_voxelised(tmp_path):
+    part = _part(tmp_path)
+    assert find_leads(SurfaceTarget(part.points, part.faces[:-10], "open")) is None
+
+
+def test_the_lead_genome_replays_on_the_placed_cube_to_a_closed_quad_cage(tmp_path):
+    problem = _problem(_part(tmp_path))
+    body, legs = lead_genomes(problem, find_leads(problem.target))
+    assert legs[:len(body)] == body
+    box, cage = problem.control_mesh(body), problem.control_mesh(legs)
+    assert box.n_vertices == 98 and np.all(cage.face_sizes == 4)
+    # per pin an inset (4 vertices) and three extrusions (4 each); genus 0 and closed
+    assert cage.n_vertices == 98 + 4 * 16
+    t = cage.topology
+    assert t.is_closed and t.is_manifold and t.euler_characteristic == 2
+    letters = "".join(op.letter for op in legs[len(body):])
+    assert letters == "IEEE" * 4
+    # the extrusions run along the pins: the cage reaches past the body's box on both sides
+    assert np.ptp(cage.vertices[:, 1]) > np.ptp(box.vertices[:, 1]) + PIN[1]
+
+
+def test_a_user_template_other_than_a_cube_gets_no_lead_genome(tmp_path):
+    problem = _problem(_part(tmp_path))
+    problem.template = problem.control_mesh(lead_genomes(problem, find_leads(problem.target))[0])
+    assert lead_genomes(problem, find_leads(problem.target)) is None
+
+
+def test_the_legs_pay_on_a_pinned_part_and_refine_from_there(tmp_path):
+    problem = _problem(_part(tmp_path))
+    genome, info = lead_start(problem)
+    assert info["kept"] and genome and info["gain"] >= 1.0
+    assert info["lead_distance"] < 0.5 * info["body_distance"]
+    final, levels = refine(problem, genome, 2e-3, None, 400)
+    assert problem.control_mesh(final).n_vertices >= 162
+    assert levels[-1].cost < info["lead_distance"]
+
+
+_SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
+              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1)
+
+
+def test_a_run_on_a_pinned_part_grows_its_legs_into_the_history(tmp_path):
+    result = reconstruct_surface(_part(tmp_path), seed=1, **_SMALL)
+    m = result.metrics
+    assert m["lead_start"]["kept"] and m["lead_start"]["leads"] == 4
+    assert m["refined_from"] == "body and leads"
+    letters = "".join(op.letter for op in result.genome)
+    assert letters.count("I") == 4 and letters.count("E") == 12
+    assert m["n_control_vertices"] >= 162
+    assert 0.5 * (m["data_to_fit_mean"] + m["fit_to_data_mean"]) < 2e-3
+
+
+def test_a_run_on_a_plain_box_looks_for_leads_and_grows_no_legs(tmp_path):
+    result = reconstruct_surface(_part(tmp_path, pins=False), seed=1, **dict(_SMALL, refine_seconds=10))
+    m = result.metrics
+    assert m["lead_start"] is None and m["refined_from"] != "body and leads"
+
+
+def test_with_two_processes_the_second_path_grows_the_legs(tmp_path, monkeypatch):
+    import time
+
+    import gsr_cad.reconstruct.surface as surface_module
+    from gsr_cad.reconstruct.second_path import TemplatePath
+
+    started = []
+
+    class Spied(TemplatePath):
+        def __init__(self, problem, *args, **kwargs):
+            started.append(kwargs)
+            super().__init__(problem, *args, **kwargs)
+
+    monkeypatch.setattr(surface_module, "TemplatePath", Spied)
+    target = _part(tmp_path)
+    config = SurfaceConfig(refine_workers=2, refine_fill=0.0)
+    problem = SurfaceProblem(target, config, place_template("cube", target, config).mesh)
+    winner = (Extrude(5, 0.3),)  # a boss the part does not have: the search's winner stays the first path
+    grown = surface_module._refined(problem, winner, 1e-9, time.perf_counter() + 40, [], None, False)
+    assert len(started) == 1 and started[0]["free_corners"] is False
+    assert "".join(op.letter for op in started[0]["genome"]).endswith("IEEE" * 4)
+    assert grown is not None and grown.leads["kept"] and grown.workers == 2
+    assert grown.path == "body and leads"  # the legs are closer than the boss
