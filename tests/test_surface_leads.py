@@ -8,11 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from gsr_cad.ops.mesh import Extrude
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
 from gsr_cad.reconstruct.leads import find_leads, lead_genomes, lead_start
-from gsr_cad.ops.mesh import Extrude
 from gsr_cad.reconstruct.refine import refine
+from gsr_cad.reconstruct.summary import summary_lines
 from gsr_cad.reconstruct.surface import SurfaceProblem, place_template, reconstruct_surface
 
 BODY = (6.0, 4.0, 2.0)
@@ -20,15 +21,16 @@ PIN = (0.6, 1.5, 0.4)  # width (x), reach beyond the body (y), height (z)
 PIN_X = (-1.8, 1.8)  # two pins on each long side
 
 
-def _part(tmp_path, pins: bool = True) -> SurfaceTarget:
-    """A box body with four straight pins, fused and tessellated by OpenCascade (not by our kernel)."""
+def _part(tmp_path, pins: bool = True, pin_x: tuple[float, ...] = PIN_X, width: float = PIN[0]) -> SurfaceTarget:
+    """A box body with straight pins at ``pin_x`` on both long sides, fused and tessellated by OpenCascade (not by
+    our kernel)."""
     bd = pytest.importorskip("build123d", reason="the cad extra (build123d) builds the part")
     shape = bd.Box(*BODY)
     if pins:
-        for x in PIN_X:
+        for x in pin_x:
             for side in (-1, 1):
                 y = side * (BODY[1] / 2 + PIN[1] / 2 - 0.1)
-                shape = shape + bd.Pos(x, y, -0.4) * bd.Box(PIN[0], PIN[1] + 0.2, PIN[2])
+                shape = shape + bd.Pos(x, y, -0.4) * bd.Box(width, PIN[1] + 0.2, PIN[2])
     path = tmp_path / ("pins.stl" if pins else "box.stl")
     bd.export_stl(shape, str(path), tolerance=1e-3, angular_tolerance=0.1)
     return surface_target(path)
@@ -84,6 +86,16 @@ def test_the_lead_genome_replays_on_the_placed_cube_to_a_closed_quad_cage(tmp_pa
     assert np.ptp(cage.vertices[:, 1]) > np.ptp(box.vertices[:, 1]) + PIN[1]
 
 
+def test_a_row_of_pins_too_crowded_for_the_box_grid_gets_a_finer_one(tmp_path):
+    # two pins per column of the twice-split box's side (four faces across it), one per column split thrice
+    problem = _problem(_part(tmp_path, pin_x=(-1.05, -0.45, 0.45, 1.05), width=0.3))
+    found = find_leads(problem.target)
+    assert len(found.leads) == 8
+    body, legs = lead_genomes(problem, found)
+    assert problem.control_mesh(body).n_vertices == 386  # three splits: eight faces along each side
+    assert "".join(op.letter for op in legs[len(body):]) == "IEEE" * 8
+
+
 def test_a_user_template_other_than_a_cube_gets_no_lead_genome(tmp_path):
     problem = _problem(_part(tmp_path))
     problem.template = problem.control_mesh(lead_genomes(problem, find_leads(problem.target))[0])
@@ -107,8 +119,9 @@ _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2,
 def test_a_run_on_a_pinned_part_grows_its_legs_into_the_history(tmp_path):
     result = reconstruct_surface(_part(tmp_path), seed=1, **_SMALL)
     m = result.metrics
-    assert m["lead_start"]["kept"] and m["lead_start"]["leads"] == 4
+    assert m["lead_start"]["kept"] and m["lead_start"]["leads"] == m["lead_start"]["legs"] == 4
     assert m["refined_from"] == "body and leads"
+    assert "the body's box with 4 legs" in "\n".join(summary_lines(result))
     letters = "".join(op.letter for op in result.genome)
     assert letters.count("I") == 4 and letters.count("E") == 12
     assert m["n_control_vertices"] >= 162

@@ -8,8 +8,8 @@ the search's winner, a start with the legs in it:
   the largest piece left is the body; the pieces of the solid outside the dilated body are the leads, each as
   where it leaves the body and its farthest point from there.
 * :func:`lead_genomes`: ops on the placed cube template: moves to the body's box (in the template's own frame),
-  two splits (edge loops: the box's 98-vertex grid), then per lead an inset of the face it leaves from and
-  :data:`SEGMENTS` extrusions along it.
+  two splits (edge loops: the box's 98-vertex grid; three where pins crowd a side), then per lead an inset of the
+  face it leaves from and :data:`SEGMENTS` extrusions along it.
 * :func:`lead_start`: that start when it pays: fitted alike, the cage with its legs must gain on the body's box
   alone at least :data:`MIN_GAIN` (log distance per log control vertices; a split gains about 0.3-0.5) and
   :data:`MIN_RATIO`, so that a blob or a slotted part whose "leads" are ribs keeps the plain template.
@@ -42,10 +42,13 @@ REACH = 1.5
 MAX_VOXELS = 2_000_000
 """The most voxels a solid may have (a target far thinner along one axis still gets RESOLUTION along the longest)."""
 SPLITS = 2
+MAX_SPLITS = 3
 SEGMENTS = 3
 INSET = 0.25
 """The inset of a lead's face, a share of the face's inradius."""
-MIN_GAIN = 1.0
+MIN_GAIN = 0.5
+"""The legs' least gain: as much as the best splits gain per added vertex (TSSOP-8's eight legs, 0.59 at the gate,
+grew to 678 control vertices at 7.2e-4 of the diagonal both ways, where the baseline has 2.0e-3 at 755)."""
 MIN_RATIO = 1.5
 """And the legs must bring the cage this many times closer (a single short "lead" adds few vertices: LetterBlock's
 letter, 98 -> 114 control vertices, 2.1e-2 -> 1.7e-2 of the diagonal, a gain of 1.5 that is no leg)."""
@@ -162,8 +165,9 @@ def _frame(template: PolyMesh) -> np.ndarray | None:
 
 def lead_genomes(problem, leads: Leads) -> tuple[tuple, tuple] | None:
     """``(the body's box split, that plus the leads)`` as genomes on ``problem``'s template (module docstring), or
-    None when the template is not a placed cube or the ops refuse. A lead whose face another lead took, or whose
-    ops refuse, is left out; None when none is left."""
+    None when the template is not a placed cube, the ops refuse or no lead gets its leg. The box is split
+    :data:`SPLITS` times, once more (up to :data:`MAX_SPLITS`) while leads share a face (a row of many pins on a
+    side four faces wide); the split that gives most leads their leg is kept."""
     axes = _frame(problem.template)
     if axes is None:
         return None
@@ -177,18 +181,32 @@ def lead_genomes(problem, leads: Leads) -> tuple[tuple, tuple] | None:
     if refused:
         return None
     genome = tuple(moves)
-    for _ in range(SPLITS):
+    best: tuple[tuple, tuple, int] | None = None
+    for splits in range(1, MAX_SPLITS + 1):
         split = split_all(state, state)
         if split is None:
-            return None
+            break
         genome += split[0]
         state = split[1]
-    body = genome
+        if splits < SPLITS:
+            continue
+        legs, count = _legs(state, genome, leads.leads)
+        if count and (best is None or count > best[2]):
+            best = (genome, legs, count)
+        if count == len(leads.leads):
+            break
+    return None if best is None else best[:2]
+
+
+def _legs(state: PolyMesh, genome: tuple, leads: list[tuple[np.ndarray, np.ndarray]]) -> tuple[tuple, int]:
+    """``genome`` (which builds ``state``) followed by an inset and :data:`SEGMENTS` extrusions per lead, and how
+    many leads got theirs (a lead whose face another took, or whose ops refuse, is left out)."""
     used: set[int] = set()
-    for start, far in leads.leads:
+    for start, far in leads:
         along = far - start
         length = float(np.linalg.norm(along))
-        # the face nearest where the lead leaves, preferring faces that look along it
+        # the face nearest where the lead leaves, preferring faces that look along it (when another lead has it,
+        # the grid is too coarse there)
         score = (np.linalg.norm(state.face_centroids - start, axis=1)
                  - 0.5 * np.maximum(state.face_normals @ along, 0.0))
         face = int(np.argmin(score))
@@ -206,7 +224,7 @@ def lead_genomes(problem, leads: Leads) -> tuple[tuple, tuple] | None:
         used.add(face)
         state = built
         genome += ops
-    return (body, genome) if used else None
+    return genome, len(used)
 
 
 def lead_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str, Any]] | None:
@@ -234,7 +252,8 @@ def lead_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str,
     if not all(math.isfinite(c) and c > 0 for c in costs):
         return None
     gain = math.log(costs[0] / costs[1]) / math.log(sizes[1] / sizes[0])
-    info = {"leads": len(leads.leads), "body_vertices": sizes[0], "body_distance": costs[0],
+    info = {"leads": len(leads.leads), "legs": sum(isinstance(op, Inset) for op in genomes[1][len(genomes[0]):]),
+            "body_vertices": sizes[0], "body_distance": costs[0],
             "lead_vertices": sizes[1], "lead_distance": costs[1], "gain": gain,
             "seconds": leads.seconds}
     info["kept"] = bool(gain >= MIN_GAIN and costs[1] * MIN_RATIO <= costs[0])

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .config import REFINE_STALL_GAIN
+from .leads import LEAD_PATH
 from .result import Result
 from .units import format_length, model_metrics, unit_label
 
@@ -126,7 +127,17 @@ def summary_lines(result: Result, out: Path | None = None) -> list[str]:
         lines.append(f"  the paper's mixed mean distance: {mixed:.3g} of the diagonal (a pairing measure, not a "
                      "deviation: see README)")
     genus = genus_line(result.metrics)
-    return lines + ([genus] if genus else [])
+    legs = legs_line(result.metrics)
+    return lines + ([genus] if genus else []) + ([legs] if legs else [])
+
+
+def legs_line(metrics: dict[str, Any]) -> str | None:
+    """``structure: the body's box with N legs ...`` when a leaded part's legs made the result; else None."""
+    lead = metrics.get("lead_start")
+    if metrics.get("refined_from") != LEAD_PATH or not isinstance(lead, dict):
+        return None
+    return (f"  structure: the body's box with {lead.get('legs', '?')} legs (an inset and extrusions each) for the "
+            f"{lead.get('leads', '?')} leads found on the target (metrics.lead_start)")
 
 
 def genus_line(metrics: dict[str, Any]) -> str | None:
