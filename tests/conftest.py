@@ -86,6 +86,20 @@ def opensubdiv(mesh: PolyMesh, levels: int, *, limit: bool = True, boundary: str
     return PolyMesh.from_faces(np.array(out.vertices), [out.get_facet_vertices(f) for f in range(out.num_facets)])
 
 
+def grower(target):
+    """A surface problem on ``target`` (the placed cube template, 4,000 points) measured and capped as the
+    refinement measures and caps: what a designer's start (module starts) is built and gated on."""
+    from gsr_cad.reconstruct.config import SurfaceConfig
+    from gsr_cad.reconstruct.surface import SurfaceProblem, place_template
+
+    config = SurfaceConfig()
+    template = place_template("cube", target, config).mesh
+    problem = SurfaceProblem(target, dataclasses.replace(config, max_target_points=4000), template, exact_back=True,
+                             exact_facets=True)
+    problem.max_faces = config.refine_max_faces
+    return problem
+
+
 def failures(checks) -> list[str]:
     """The exporter checks that failed (skipped ones are not failures), as ``check: detail``."""
     return [f"{c.check}: {c.detail}" for c in checks if c.passed is False]

@@ -535,7 +535,7 @@ def test_a_budget_split_cut_on_the_softened_cage_is_placed_after_the_moves_and_c
     it, so loops cut on the limit cage fold on every cage a history can reach. Cut on the softened cage (the moves
     that do replay), they are placed after those moves, and the level commits and replays."""
     from gsr_cad.ops.mesh_kernel import unsound_faces
-    from gsr_cad.reconstruct.refine import _apply, _commit, residual, softened
+    from gsr_cad.reconstruct.refine import _commit, apply_ops, residual, softened
 
     cube = _cube()
     fine = get_catmull_clark(cube, 1, "all").refine(cube.vertices)
@@ -552,7 +552,7 @@ def test_a_budget_split_cut_on_the_softened_cage_is_placed_after_the_moves_and_c
     on_limit = budget_split(skewed, res, lambda mesh: True)
     assert on_limit and _after(problem, moves, on_limit)[1] is None  # what example007's 546-vertex cage met
     ops = budget_split(skewed, res, lambda mesh: True, soft)
-    assert len(ops) >= 2 and _apply(ops, skewed) is None
+    assert len(ops) >= 2 and apply_ops(ops, skewed) is None
     prefix, built = _after(problem, moves, ops, soft=(moves, soft_moves, soft))
     assert built is not None and prefix == moves + soft_moves
     assert np.allclose(problem.control_mesh(prefix + ops).vertices, built.vertices)
@@ -651,7 +651,7 @@ def test_only_cages_no_op_grows_from_are_fitted_with_free_corners(monkeypatch):
         return apply
 
     monkeypatch.setattr(problem, "fit", logged)
-    monkeypatch.setattr(refine_module, "_apply", checked(refine_module._apply))
+    monkeypatch.setattr(refine_module, "apply_ops", checked(refine_module.apply_ops))
     monkeypatch.setattr(refine_module, "carried", checked(refine_module.carried))
     seen = []
     genome, levels = refine(problem, (), 1e-9, None, 30,

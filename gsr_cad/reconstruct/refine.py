@@ -239,7 +239,7 @@ def carried(ops: tuple[MeshOp, ...], mesh: PolyMesh, soft: PolyMesh | None = Non
     smooth = mesh
     for k in range(-1 if soft is not None else 0, SMOOTHINGS):
         smooth = soft if k < 0 else limit_cage(mesh if smooth is soft else smooth)
-        built = _apply(ops, smooth)
+        built = apply_ops(ops, smooth)
         if built is not None:
             break
     else:
@@ -584,9 +584,9 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
             kinds[split[0]] = "split"
         balanced = balanced_split(mesh)
         if balanced:
-            b = _apply(balanced, mesh)
+            b = apply_ops(balanced, mesh)
             if b is not None:
-                a = _apply(balanced, base_state)
+                a = apply_ops(balanced, base_state)
                 proposals.append((balanced, a if a is not None and a.topology_key == b.topology_key else None, b))
                 kinds.setdefault(balanced, "balanced split")
         batch = inset_batch(mesh, res)
@@ -609,12 +609,12 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 # level stood at 5.67e-3; 5.05e-3 after its full fit)
                 whole = {part}
         for ops in local:
-            b = _apply(ops, mesh)
+            b = apply_ops(ops, mesh)
             if b is None:
                 b = carried(ops, mesh, softer())
             if b is None:
                 continue
-            a = _apply(ops, base_state)
+            a = apply_ops(ops, base_state)
             proposals.append((ops, a if a is not None and a.topology_key == b.topology_key else None, b))
         scored = []
         for ops, a, b in proposals:
@@ -653,7 +653,7 @@ def refine(problem, genome: tuple, goal: float, deadline: float | None, max_face
                 v, c, via = snapped(problem, _fit, out_of_time, b.with_vertices(v), c, LEVEL_SNAPS, LEVEL_ROUNDS)
                 chosen = _fit.timed("commit", b, lambda: _commit(problem, base, base_state, full, ops, a,
                                                                  b.with_vertices(v), c, cost, _fit.late(b), via,
-                                                                 soft[0] if soft and _apply(ops, mesh) is None
+                                                                 soft[0] if soft and apply_ops(ops, mesh) is None
                                                                  else None))
                 if chosen is not None:
                     break
@@ -745,7 +745,7 @@ def _prefix_sizes(ops: tuple, mesh: PolyMesh, soft: PolyMesh | None = None) -> l
         state = states[k] if k < len(states) else limit_cage(mesh if k == len(states) else state)
         sizes, built = [], state
         for op in ops:
-            built = _apply((op,), built)
+            built = apply_ops((op,), built)
             if built is None:
                 break
             sizes.append(built.n_vertices)
@@ -811,7 +811,7 @@ def _prefix_level(problem, _fit, out_of_time, stage: tuple, part: tuple, control
     front point only, no level): finished with free corners (:func:`_finish`). Ops that fold a face on the
     stage's cage are placed on its softened cage (``soft``, made here when not given: :func:`softened`)."""
     base, base_state, full, mesh, cost = stage
-    b = _apply(part, mesh)
+    b = apply_ops(part, mesh)
     if b is None:
         if soft is None or soft[0] != full:
             soft = (full, *softened(problem, full))
@@ -1028,7 +1028,7 @@ def _snapped_level(problem, _fit, out_of_time, base: tuple, base_state: PolyMesh
     passes) and committed as a level (:func:`_commit`, with ``soft``; the ops replay on ``base_state`` where they
     apply)."""
     v, c, via = snapped(problem, _fit, out_of_time, fitted, c, LEVEL_SNAPS, LEVEL_ROUNDS)
-    a = _apply(ops, base_state)
+    a = apply_ops(ops, base_state)
     a = a if a is not None and a.topology_key == fitted.topology_key else None
     return _fit.timed("commit", fitted, lambda: _commit(problem, base, base_state, full, ops, a,
                                                         fitted.with_vertices(v), c, cost, _fit.late(fitted), via,
@@ -1042,7 +1042,8 @@ def limit_cage(mesh: PolyMesh) -> PolyMesh:
     return mesh.with_vertices(cc.limit_matrix[:mesh.n_vertices] @ mesh.vertices)
 
 
-def _apply(ops: tuple, state: PolyMesh) -> PolyMesh | None:
+def apply_ops(ops: tuple, state: PolyMesh) -> PolyMesh | None:
+    """``state`` after ``ops`` in turn, or None when one refuses."""
     try:
         for op in ops:
             state = op.apply(state)
@@ -1072,18 +1073,18 @@ def _after(problem, genome: tuple, ops: tuple, deadline: float | None = None,
     could not be committed and the refinement lost it). No staged move starts after ``deadline``. ``soft``:
     ``(genome, its moves, the cage they reach)`` of :func:`softened`, tried first."""
     state = problem.control_mesh(genome)
-    built = _apply(ops, state)
+    built = apply_ops(ops, state)
     if built is not None:
         return genome, built
     if soft is not None and soft[0] == genome:
-        built = _apply(ops, soft[2])
+        built = apply_ops(ops, soft[2])
         if built is not None:
             return genome + soft[1], built
     smooth = state
     for _ in range(SMOOTHINGS):
         smooth = limit_cage(smooth)
         moves, reached, _ = problem._moves(state, smooth.vertices, deadline)
-        built = _apply(ops, reached)
+        built = apply_ops(ops, reached)
         if built is not None:
             return genome + moves, built
     return genome, None

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .config import REFINE_STALL_GAIN
+from .blocks import BLOCK_PATH
 from .leads import LEAD_PATH
 from .result import Result
 from .units import format_length, model_metrics, unit_label
@@ -132,12 +133,18 @@ def summary_lines(result: Result, out: Path | None = None) -> list[str]:
 
 
 def legs_line(metrics: dict[str, Any]) -> str | None:
-    """``structure: the body's box with N legs ...`` when a leaded part's legs made the result; else None."""
-    lead = metrics.get("lead_start")
-    if metrics.get("refined_from") != LEAD_PATH or not isinstance(lead, dict):
+    """``structure: the body's box with N legs/blocks ...`` when a designer's start (module starts) made the
+    result; else None."""
+    start = metrics.get("lead_start")
+    if not isinstance(start, dict) or metrics.get("refined_from") not in (LEAD_PATH, BLOCK_PATH):
         return None
-    return (f"  structure: the body's box with {lead.get('legs', '?')} legs (an inset and extrusions each) for the "
-            f"{lead.get('leads', '?')} leads found on the target (metrics.lead_start)")
+    if metrics["refined_from"] == LEAD_PATH:
+        lead = start.get("leads") or {}
+        return (f"  structure: the body's box with {lead.get('grown', '?')} legs (an inset and extrusions each) "
+                f"for the {lead.get('found', '?')} leads found on the target (metrics.lead_start)")
+    block = start.get("blocks") or {}
+    return (f"  structure: the body's box with {block.get('grown', '?')} blocks (a region extrusion each) of the "
+            f"{block.get('found', '?')} found standing on it (metrics.lead_start)")
 
 
 def genus_line(metrics: dict[str, Any]) -> str | None:

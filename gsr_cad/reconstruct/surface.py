@@ -95,7 +95,7 @@ from ..ops.rewrite import simplify_history
 from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
-from .leads import LEAD_PATH, lead_start
+from .starts import structured_start
 from .placement import Placement, fit_template, place_cube
 from .refine import Level, _inradius, _reach, refine, snapped_within
 from .result import MAX_OPS, Result
@@ -1660,9 +1660,9 @@ class Growth(NamedTuple):
     cost: float
     front: list[tuple[int, float, tuple]]
     levels: list[dict[str, Any]]
-    path: str = "winner"  # whose growth the genome is: the search's winner's, the placed template's or LEAD_PATH
+    path: str = "winner"  # whose growth: the search's winner's, the placed template's or a start's (module starts)
     workers: int = 1  # processes it grew on
-    leads: dict[str, Any] | None = None  # the leads found and the gate's figures (module leads), where looked for
+    leads: dict[str, Any] | None = None  # the starts found and their gate's figures (module starts), where looked for
 
 
 def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
@@ -1682,7 +1682,9 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
     tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
     the winner is within ``goal`` already and no tolerance was asked. With time left (``RESTART_SHARE`` when the
-    winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too. A winner with
+    winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too, and so
+    it is after a designer's start (module starts) took its place in the second process, with ``REACHED_SHARE``
+    left. A winner with
     faces other than quads, where the template has only quads, is not refined: the template is, instead. With two
     processes (``config.refine_workers``) the template grows beside the winner in a second one
     (:class:`~gsr_cad.reconstruct.second_path.TemplatePath`; with every fit's corners free beside a winner of the
@@ -1751,9 +1753,9 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     path = "winner" if genome else "template"
     stopped = (lambda: False) if should_stop is None else should_stop
     # a leaded part's second path starts from its body and legs, where they gain on the body alone (module leads)
-    lead = (lead_start(grower, deadline) if quads and not stopped() and set("VLIE") <= set(config.op_kinds)
-            else None)
+    lead = structured_start(grower, deadline) if quads and not stopped() else None
     other_start = lead[0] if lead is not None else ()
+    start_path = lead[1]["path"] if other_start else None
     # with a second CPU the template grows beside the winner (module second_path); else after it, in time left.
     # A winner of vertex moves only grows from the template's own structure: beside it, the template grows with
     # every fit's corners free (another strategy, closer on some chains, behind on others)
@@ -1762,10 +1764,10 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
                           genome=other_start) if quads and not stopped()
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
-    other_path = LEAD_PATH if other_start else "template"
+    other_path = start_path or "template"
     if other is None and other_start:
         # one process: the legs grow first (they gained on the body alone), the winner in the time left
-        genome, other_start, path, other_path = other_start, genome, LEAD_PATH, path
+        genome, other_start, path, other_path = other_start, genome, start_path, path
     try:
         final, levels = refine(grower, genome, goal, deadline, faces, level,
                                stopped if other is None else lambda: stopped() or other.met(), tail, fills)
@@ -1775,17 +1777,27 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     finally:
         if other is not None:
             other.close()
+
+    def rank(lv: Level) -> tuple[bool, int, float]:  # within the goal the simpler, else the closer
+        return lv.cost > goal, (lv.control.n_vertices if lv.cost <= goal else 0), lv.cost
+
     if grown is not None:
         for n, cost, history in grown[2]:
             keep(n, cost, history)
-
-        def rank(lv: Level) -> tuple[bool, int, float]:  # within the goal the simpler, else the closer
-            return lv.cost > goal, (lv.control.n_vertices if lv.cost <= goal else 0), lv.cost
-
         if rank(grown[1][-1]) < rank(levels[-1]):
             final, levels = grown[0], grown[1]
             path = other_path if shaped or other_start else "template, free corners"
     left = 0.0 if deadline is None else (deadline - time.perf_counter()) / max(deadline - started, 1e-9)
+    if genome and other is not None and other_start and not stopped() and left > REACHED_SHARE:
+        # the start took the template's place in the second process, and both paths ended early: the template
+        # grows too, in the time left, and the better by the same rank stands (offset.stl, a rounded frustum
+        # under a tube: its tapered walls made five blocks that gained on their body's box; they grew to 504
+        # control vertices at 1.6e-3 of the diagonal both ways, the winner to 226 at 1.8e-3, and the template,
+        # which they had displaced, reaches 74 at 1.5e-3)
+        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail, fills,
+                             free_corners=not shaped)
+        if rank(more[-1]) < rank(levels[-1]):
+            final, levels, path = again, more, "template" if shaped else "template, free corners"
     last = levels[-1]
     free = bool(genome) and quads and other is None and not stopped()
     if (free and last.cost > goal and 4 * last.control.n_faces <= faces  # stalled, not by the face budget

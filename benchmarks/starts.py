@@ -1,0 +1,70 @@
+"""Which real targets get a designer's start (gsr_cad.reconstruct.starts: body and legs, body and blocks), and
+what its gate measured.
+
+Per target and kind: how many legs or blocks were found on its voxel solid (and grown), the body's box and the
+cage with them, each fitted as the gate fits them, their gain (log distance per log control vertices) on that box
+and on the template's box split as often, and which start the refinement's second path takes. The targets are the
+real-data benchmark's (``real_data.py``: pymeshlab's meshes, OpenSCAD's examples, FreeCAD's IDF parts), or the
+files given.
+
+    python benchmarks/starts.py [PART.stl ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+from real_data import freecad_parts, targets
+
+from gsr_cad.reconstruct.config import SurfaceConfig
+from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.starts import structured_start
+from gsr_cad.reconstruct.surface import REFINE_POINTS, SEARCH_POINTS, SurfaceProblem, _TARGET_SEED, place_template
+
+
+def row(path: Path) -> str:
+    """One table row: the gate's figures on ``path`` as the refinement's grower sees it."""
+    started = time.perf_counter()
+    config = SurfaceConfig()
+    target = surface_target(path)
+    template = place_template("cube", target.subsampled(SEARCH_POINTS, _TARGET_SEED), config).mesh
+    grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=REFINE_POINTS), template,
+                            exact_back=target.faces is not None, exact_facets=True)
+    grower.max_faces = config.refine_max_faces
+    found = structured_start(grower)
+    seconds = time.perf_counter() - started
+    if found is None:
+        return f"| {path.name} | - | - | - | - | {seconds:.1f} |"
+    cells = []
+    for kind in ("leads", "blocks"):
+        i = found[1][kind]
+        on = i and i.get("gain_on_template")
+        on = "" if on is None else f", on the template's {on:.2f}"
+        cells.append("-" if i is None else
+                     f"{i['found']} ({i['grown']}): {i['body_vertices']} V {i['body_distance']:.2e} -> "
+                     f"{i['vertices']} V {i['distance']:.2e}, gain {i['gain']:.2f}{on}{' kept' if i['kept'] else ''}")
+    box = found[1].get("template_vertices")
+    template = "-" if box is None else f"{box} V {found[1]['template_distance']:.2e}"
+    return f"| {path.name} | {cells[0]} | {cells[1]} | {template} | {found[1]['path'] or '-'} | {seconds:.1f} |"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("parts", nargs="*", type=Path)
+    args = ap.parse_args(argv)
+    print("| target | leads found (grown): body box -> with legs | blocks found (grown): body box -> with blocks "
+          "| template's box | second path starts from | s |")
+    print("|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = args.parts or targets(Path(tmp)) + freecad_parts(Path(tmp))
+        for path in paths:
+            print(row(path), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,121 @@
+"""A designer's start for the refinement's second path: the body's box with the legs (module :mod:`.leads`) or the
+blocks (module :mod:`.blocks`) read off the target's voxel solid, where it pays.
+
+Each start is gated twice, every cage fitted alike (:data:`GATE_ROUNDS`):
+* on its own body's box (the same loops, no legs or blocks): it gains at least :data:`MIN_GAIN` (log distance per
+  log control vertices; a split gains about 0.3-0.5) and :data:`MIN_RATIO`, so that a blob or a slotted part
+  whose "leads" are ribs keeps the plain template;
+* on the template's box split as often as the legs' (what the second path grows otherwise): it is closer, and
+  gains :data:`MIN_GAIN` per added vertex where it has more.
+Of two kept, the closer stands."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+from ..errors import GsrError
+from ..ops.mesh import Inset
+from .blocks import BLOCK_PATH, block_genomes, find_blocks
+from .leads import LEAD_PATH, SPLITS, cube_frame, find_leads, lead_genomes
+from .refine import split_all
+
+MIN_GAIN = 0.5
+"""The least gain: as much as the best splits gain per added vertex (TSSOP-8's eight legs, 0.59 at the gate, grew
+to 678 control vertices at 7.2e-4 of the diagonal both ways, where the baseline has 2.0e-3 at 755)."""
+MIN_RATIO = 1.5
+"""And the start must bring the cage this many times closer (a single short "lead" adds few vertices: LetterBlock's
+letter, 98 -> 114 control vertices, 2.1e-2 -> 1.7e-2 of the diagonal, a gain of 1.5 that is no leg)."""
+GATE_ROUNDS = 20
+START_OPS = frozenset("VLIE")
+"""The ops a start may hold must all be allowed (``op_kinds``); a block's region extrusion (X) is the face
+extrude (E) of a selection of faces, as a designer extrudes in Blender."""
+
+
+def _fitted(problem, genome: tuple, deadline: float | None) -> tuple[int, float] | None:
+    """``(control vertices, distance)`` of the cage ``genome`` builds, fitted :data:`GATE_ROUNDS`; None when the
+    fit fails or time runs out."""
+    if deadline is not None and time.perf_counter() >= deadline:
+        return None
+    try:
+        mesh = problem.control_mesh(genome)
+        cost = problem.fit(mesh, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline)[1]
+    except GsrError:
+        return None
+    return (mesh.n_vertices, cost) if math.isfinite(cost) and cost > 0 else None
+
+
+def _gate(problem, genomes: tuple[tuple, tuple], deadline: float | None) -> dict[str, Any] | None:
+    """The two cages ``genomes`` build (the body's box, the start) fitted alike, and whether the start gains on
+    the box; None when a fit fails or time runs out."""
+    body = _fitted(problem, genomes[0], deadline)
+    start = _fitted(problem, genomes[1], deadline) if body is not None else None
+    if start is None or start[0] <= body[0]:
+        return None
+    gain = math.log(body[1] / start[1]) / math.log(start[0] / body[0])
+    return {"body_vertices": body[0], "body_distance": body[1], "vertices": start[0], "distance": start[1],
+            "gain": gain, "kept": bool(gain >= MIN_GAIN and start[1] * MIN_RATIO <= body[1])}
+
+
+def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str, Any]] | None:
+    """``(the start's genome, what was measured)`` (result.json ``lead_start``: ``path``, the kept start's
+    refinement path or None, and per kind ``leads`` / ``blocks`` what was found and the gate's figures); the genome
+    is empty when no start is kept. None when the template is not a placed cube, nothing is found or ops a start
+    needs are not allowed (:data:`START_OPS`)."""
+    axes = cube_frame(problem.template)
+    if axes is None or not START_OPS <= set(problem.config.op_kinds):
+        return None
+    started = time.perf_counter()
+    info: dict[str, Any] = {"path": None, "leads": None, "blocks": None}
+    starts = []
+    leads = find_leads(problem.target)
+    if leads is not None and (built := lead_genomes(problem, leads)) is not None:
+        grown = sum(isinstance(op, Inset) for op in built[1][len(built[0]):])
+        starts.append((LEAD_PATH, "leads", built, {"found": len(leads.leads), "grown": grown}))
+    blocks = find_blocks(problem.target, axes)
+    if blocks is not None and (made := block_genomes(problem, blocks, axes)) is not None:
+        starts.append((BLOCK_PATH, "blocks", made[:2], {"found": len(blocks.blocks), "grown": made[2]}))
+    if not starts:
+        return None
+    best: tuple[float, str, tuple] | None = None
+    reference: tuple[int, float] | None = None
+    for path, kind, genomes, found in starts:
+        figures = _gate(problem, genomes, deadline)
+        if figures is None:
+            continue
+        info[kind] = figures = {**found, **figures}
+        if figures["kept"] and reference is None:
+            reference = _template_box(problem, deadline)
+            if reference is not None:
+                info["template_vertices"], info["template_distance"] = reference
+        if figures["kept"] and reference is not None:
+            # the template's box split as often is what the second path grows otherwise: the start must gain on it
+            # too (offset.stl's five blocks, 162 vertices at 3.0e-3 of the diagonal, kept on their body's box
+            # alone, took the place of the template's path, 74 vertices at 1.5e-3)
+            n, cost = reference
+            gain = None if figures["vertices"] <= n else math.log(cost / figures["distance"]) / math.log(
+                figures["vertices"] / n)
+            figures["gain_on_template"] = gain
+            figures["kept"] = figures["distance"] < cost and (gain is None or gain >= MIN_GAIN)
+        if figures["kept"] and (best is None or figures["distance"] < best[0]):
+            best = (figures["distance"], path, genomes[1])
+    info["seconds"] = time.perf_counter() - started
+    if best is None:
+        return (), info
+    info["path"] = best[1]
+    return best[2], info
+
+
+def _template_box(problem, deadline: float | None) -> tuple[int, float] | None:
+    """The template split :data:`~gsr_cad.reconstruct.leads.SPLITS` times, fitted as the gate fits: ``(control
+    vertices, distance)``, or None when it does not split or time runs out."""
+    genome: tuple = ()
+    state = problem.template
+    for _ in range(SPLITS):
+        split = split_all(state, state)
+        if split is None:
+            return None
+        genome += split[0]
+        state = split[1]
+    return _fitted(problem, genome, deadline)
