@@ -3,7 +3,9 @@ what its gate measured.
 
 Per target and kind: how many legs or blocks were found on its voxel solid (and grown), the body's box and the
 cage with them, each fitted as the gate fits them, their gain (log distance per log control vertices) on that box
-and on the template's box split as often, and which start the refinement's second path takes. The targets are the
+and on the template's box split as often, and which start the refinement's second path takes; then the start's
+edges along the part's creased (module sharp: how many, and its distance after), and the placed cube's (fitted,
+then creased where its faces meet sharply: 8 control vertices before and after). The targets are the
 real-data benchmark's (``real_data.py``: pymeshlab's meshes, OpenSCAD's examples, FreeCAD's IDF parts), or the
 files given.
 
@@ -22,8 +24,17 @@ from real_data import freecad_parts, targets
 
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
+from gsr_cad.reconstruct.sharp import sharpened
 from gsr_cad.reconstruct.starts import structured_start
-from gsr_cad.reconstruct.surface import REFINE_POINTS, SEARCH_POINTS, SurfaceProblem, _TARGET_SEED, place_template
+from gsr_cad.reconstruct.surface import (FRONT_ROUNDS, REFINE_POINTS, SEARCH_POINTS, SurfaceProblem, _TARGET_SEED,
+                                         place_template)
+
+
+def creased_cube(grower) -> str:
+    """The placed cube fitted as the front's cages are, then its sharp edges creased (module sharp)."""
+    vertices, cost = grower.fit(grower.template, FRONT_ROUNDS)
+    sharp = sharpened(grower, grower.template, vertices, cost, FRONT_ROUNDS, coarse=True)
+    return f"{cost:.2e} -> " + ("-" if sharp is None else f"{len(sharp[0])} C {sharp[2]:.2e}")
 
 
 def row(path: Path) -> str:
@@ -36,9 +47,10 @@ def row(path: Path) -> str:
                             exact_back=target.faces is not None, exact_facets=True)
     grower.max_faces = config.refine_max_faces
     found = structured_start(grower)
+    cube = creased_cube(grower)
     seconds = time.perf_counter() - started
     if found is None:
-        return f"| {path.name} | - | - | - | - | {seconds:.1f} |"
+        return f"| {path.name} | - | - | - | - | - | {cube} | {seconds:.1f} |"
     cells = []
     for kind in ("leads", "blocks"):
         i = found[1][kind]
@@ -49,7 +61,9 @@ def row(path: Path) -> str:
                      f"{i['vertices']} V {i['distance']:.2e}, gain {i['gain']:.2f}{on}{' kept' if i['kept'] else ''}")
     box = found[1].get("template_vertices")
     template = "-" if box is None else f"{box} V {found[1]['template_distance']:.2e}"
-    return f"| {path.name} | {cells[0]} | {cells[1]} | {template} | {found[1]['path'] or '-'} | {seconds:.1f} |"
+    creased = (f"{found[1]['creases']} C {found[1]['creased_distance']:.2e}" if found[1].get("creases") else "-")
+    return (f"| {path.name} | {cells[0]} | {cells[1]} | {template} | {found[1]['path'] or '-'} | {creased} | {cube} "
+            f"| {seconds:.1f} |")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -57,8 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("parts", nargs="*", type=Path)
     args = ap.parse_args(argv)
     print("| target | leads found (grown): body box -> with legs | blocks found (grown): body box -> with blocks "
-          "| template's box | second path starts from | s |")
-    print("|---|---|---|---|---|---|")
+          "| template's box | second path starts from | start creased | placed cube: smooth -> creased | s |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         paths = args.parts or targets(Path(tmp)) + freecad_parts(Path(tmp))
         for path in paths:

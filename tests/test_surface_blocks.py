@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import grower
 
+from gsr_cad.ops.mesh import Crease, TranslateVertex
 from gsr_cad.reconstruct.blocks import BLOCK_PATH, block_genomes, find_blocks
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
 from gsr_cad.reconstruct.leads import cube_frame
@@ -121,11 +122,18 @@ def test_the_block_genome_puts_loops_at_the_footprints_and_extrudes_each_prong(t
 def test_the_blocks_pay_on_an_e_core_and_refine_from_there(tmp_path):
     problem = _problem(_core(tmp_path))
     genome, info = structured_start(problem)
-    assert info["path"] == BLOCK_PATH and genome == block_genomes(
-        problem, find_blocks(problem.target, cube_frame(problem.template)), cube_frame(problem.template))[1]
+    blocks = block_genomes(problem, find_blocks(problem.target, cube_frame(problem.template)),
+                           cube_frame(problem.template))[1]
+    assert info["path"] == BLOCK_PATH and genome[:len(blocks)] == blocks
     figures = info["blocks"]
     assert figures["kept"] and figures["found"] == figures["grown"] == 3
     assert figures["distance"] < 0.5 * figures["body_distance"]
+    # the loops slid onto the prongs' sides run along the part's edges: creased, the start fits far closer
+    after = genome[len(blocks):]  # the creases, then the moves to their fit where that started from the start's
+    creases = [op for op in after if isinstance(op, Crease)]
+    assert creases and after[:len(creases)] == tuple(creases) and info["creases"] == len(creases)
+    assert all(isinstance(op, TranslateVertex) for op in after[len(creases):])
+    assert info["creased_distance"] < 0.5 * figures["distance"]
     final, levels = refine(problem, genome, 1e-3, None, 400)
     assert levels[-1].cost < figures["distance"]
 
@@ -145,5 +153,7 @@ def test_a_run_on_an_e_core_grows_its_prongs_into_the_history(tmp_path):
     m = result.metrics
     assert m["refined_from"] == BLOCK_PATH and m["lead_start"]["path"] == BLOCK_PATH
     assert "the body's box with 3 blocks" in "\n".join(summary_lines(result))
-    assert "".join(op.letter for op in result.genome).count("X") == 3
+    letters = "".join(op.letter for op in result.genome)
+    assert letters.count("X") == 3 and "C" in letters
+    assert "edges along the part's creased" in "\n".join(summary_lines(result))
     assert 0.5 * (m["data_to_fit_mean"] + m["fit_to_data_mean"]) < 2e-3

@@ -297,7 +297,10 @@ def test_a_run_refines_records_every_level_on_a_non_dominated_front_and_max_dist
                        for q in points)
     levels = {r["vertices"] for r in m["refinement"]}
     assert levels & {p["vertices"] for p in points} == levels or len(points) >= 2
-    assert m["n_control_vertices"] == m["refinement"][-1]["vertices"]
+    # the refinement met the goal: the result is the simplest cage of the front within it (a fill between its
+    # levels may be)
+    assert m["refinement"][-1]["distance"] <= 5e-4
+    assert m["n_control_vertices"] == min(p["vertices"] for p in points if p["distance"] <= 5e-4)
     goal = m["refinement"][1]["distance"] * 1.001
     picked = reconstruct_surface(target, seed=1, max_distance=goal, **bounded)
     assert picked.metrics["tolerance_met"] is True
@@ -484,7 +487,10 @@ def test_a_winner_that_meets_the_goal_early_leaves_the_time_to_a_simpler_cage_fr
     rows = result.metrics["refinement"]
     assert len(calls) == 2 and calls[0][0] > 0 and calls[1] == (0, ends[0].n_faces - 1)
     assert rows[0]["vertices"] == 8 and rows[-1]["distance"] <= 1e-3
-    assert result.metrics["n_control_vertices"] == rows[-1]["vertices"] == ends[1].n_vertices < ends[0].n_vertices
+    assert rows[-1]["vertices"] == ends[1].n_vertices < ends[0].n_vertices
+    # the simplest cage of the front within the goal stands (the template's last level, or a fill before it)
+    within = [p["vertices"] for p in result.metrics["front"] if p["distance"] <= 1e-3]
+    assert result.metrics["n_control_vertices"] == min(within) <= rows[-1]["vertices"]
 
 
 def test_the_residual_points_at_the_face_over_a_pocket_and_a_pocket_is_proposed():

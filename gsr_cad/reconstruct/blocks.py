@@ -12,7 +12,7 @@ plate it stands on survives any opening. Blocks are found the other way round:
   every footprint (slid onto it by vertex moves), loops at midpoints until every axis has :data:`MIN_LINES`, then
   per block a region extrusion (X) of the faces under its footprint by its height.
 
-:func:`~gsr_cad.reconstruct.leads.lead_start` gates this start as it gates the legs.
+:func:`~gsr_cad.reconstruct.starts.structured_start` gates this start as it gates the legs.
 """
 
 from __future__ import annotations

@@ -396,6 +396,11 @@ class SurfaceConfig:
         "Processes the refinement grows on: 2 grows the placed template in a second process beside the searched "
         "winner, and the closer stands; 1 grows the template after the winner only when time is left; 0: 2 where "
         "this process may use two or more CPUs, else 1.")
+    sharp_edges: bool = _field(
+        True,
+        "Crease (infinitely sharp) the control edges that run along the target's sharp feature lines where that "
+        "brings the fitted cage closer: a designer's start (body and blocks or legs) and the search's simple cages "
+        "on the front; off: smooth cages only.")
     population: int = _field(100, "Individuals kept from one generation to the next.")
     initial_population: int = _field(100, "Random genomes drawn in generation 0.")
     min_initial_ops: int = _field(1, "Fewest ops in a random initial genome (and in a newcomer).")

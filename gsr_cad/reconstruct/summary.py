@@ -127,9 +127,22 @@ def summary_lines(result: Result, out: Path | None = None) -> list[str]:
     if result.kind == "surface" and _real(mixed):
         lines.append(f"  the paper's mixed mean distance: {mixed:.3g} of the diagonal (a pairing measure, not a "
                      "deviation: see README)")
-    genus = genus_line(result.metrics)
-    legs = legs_line(result.metrics)
-    return lines + ([genus] if genus else []) + ([legs] if legs else [])
+    extra = (genus_line(result.metrics), legs_line(result.metrics), sharp_line(result.metrics))
+    return lines + [line for line in extra if line]
+
+
+def sharp_line(metrics: dict[str, Any]) -> str | None:
+    """``sharp edges: ...`` when the result's cage holds creases set along the part's edges (module sharp)."""
+    sharp = metrics.get("sharp_edges")
+    if not isinstance(sharp, dict) or not sharp.get("creases"):
+        return None
+    text = f"  sharp edges: {sharp['creases']} control edges creased along the part's edges"
+    grown = str(metrics.get("refined_from") or "")
+    if (sharp.get("template_creases") and (grown.startswith("template") or grown == "front")
+            and _real(sharp.get("template_distance")) and _real(sharp.get("creased_distance"))):
+        text += (f" (the placed cube's {sharp['template_creases']}: {sharp['template_distance']:.2g} -> "
+                 f"{sharp['creased_distance']:.2g} of the diagonal)")
+    return text
 
 
 def legs_line(metrics: dict[str, Any]) -> str | None:
@@ -138,13 +151,14 @@ def legs_line(metrics: dict[str, Any]) -> str | None:
     start = metrics.get("lead_start")
     if not isinstance(start, dict) or metrics.get("refined_from") not in (LEAD_PATH, BLOCK_PATH):
         return None
+    sharp = f", {start['creases']} edges along the part's creased" if start.get("creases") else ""
     if metrics["refined_from"] == LEAD_PATH:
         lead = start.get("leads") or {}
         return (f"  structure: the body's box with {lead.get('grown', '?')} legs (an inset and extrusions each) "
-                f"for the {lead.get('found', '?')} leads found on the target (metrics.lead_start)")
+                f"for the {lead.get('found', '?')} leads found on the target{sharp} (metrics.lead_start)")
     block = start.get("blocks") or {}
     return (f"  structure: the body's box with {block.get('grown', '?')} blocks (a region extrusion each) of the "
-            f"{block.get('found', '?')} found standing on it (metrics.lead_start)")
+            f"{block.get('found', '?')} found standing on it{sharp} (metrics.lead_start)")
 
 
 def genus_line(metrics: dict[str, Any]) -> str | None:

@@ -55,7 +55,10 @@ whole cage by edge loops that keep its limit surface, each fitted by the adaptiv
 the time (``refine_share`` of ``max_seconds``, else ``refine_seconds``) or ``refine_max_faces`` runs out,
 or no op gains. Every level joins the accuracy/complexity front (``metrics["front"]``, one record per
 level in ``metrics["refinement"]``), measured alike: a mesh target's triangles both ways, the surface -> target
-direction less each triangle's chord sag (see :meth:`SurfaceProblem._back`).
+direction less each triangle's chord sag (see :meth:`SurfaceProblem._back`). Sharp edges (beyond the paper,
+``sharp_edges``, :mod:`~gsr_cad.reconstruct.sharp`): the search's simple cages, the placed cube and a designer's
+start get their edges along the part's edges creased where that brings them closer; the template path grows
+from its creased cube, and the simplest cage of the front within the goal is the result.
 
 Replays are cached by genome prefix (children share their parents' prefixes); subdivision matrices by
 connectivity (in :mod:`gsr_cad.geometry.subdivision`); KD-trees once per target.
@@ -90,16 +93,17 @@ from ..geometry.surface_distance import (NearTriangles, area_samples, chord_sag,
 from ..ops import mesh_kernel as MK
 from ..ops.mesh_kernel import unsound_faces
 from ..ops.base import replay
-from ..ops.mesh import Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
+from ..ops.mesh import Crease, Extrude, Inset, OpRanges, TranslateVertex, moves_to, perturb_op, random_op
 from ..ops.rewrite import simplify_history
 from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
 from .starts import structured_start
 from .placement import Placement, fit_template, place_cube
-from .refine import Level, _inradius, _reach, refine, snapped_within
+from .refine import Level, _inradius, _reach, apply_ops, refine, snapped_within
 from .result import MAX_OPS, Result
 from .second_path import TemplatePath, refine_workers
+from .sharp import sharpened
 from .snap import snap_far_vertices
 from .templates import feature_genomes, fitted_template, genus_metrics, target_genus
 
@@ -1481,9 +1485,11 @@ def reconstruct_surface(target, *, template: str | os.PathLike[str] | PolyMesh =
         "metrics_seconds": metrics_seconds,
         "predicted_metrics_seconds": tail(control.n_vertices),
         "refinement": [] if growth is None else growth.levels,
-        "refined_from": None if growth is None or not growth.levels else growth.path,
+        "refined_from": None if growth is None or not (growth.levels or growth.path == FRONT_PATH) else growth.path,
         "refine_workers": 0 if growth is None else growth.workers,
         "lead_start": None if growth is None else growth.leads,
+        "sharp_edges": None if growth is None or growth.sharp is None else {
+            **growth.sharp, "creases": sum(isinstance(op, Crease) for op in final)},
         "searched_ops": searched_ops,
         "seconds": time.perf_counter() - started,
         "generations": run.generations,
@@ -1550,6 +1556,9 @@ def _front_distances(problem: SurfaceProblem, pareto: list[tuple[int, float, tup
     return out
 
 
+FRONT_PATH = "front"
+"""``refined_from`` of a result whose cage is a point of the front simpler than the refinement paths' last cages
+(a creased cage of the search within the goal, or closer than they came)."""
 FRONT_ROUNDS = 30
 """Least-squares rounds each of the search's front cages smaller than its winner gets before it joins the
 refinement's front (the search's evaluation polish stops after ``polish_rounds``; a user picking a simple cage
@@ -1663,6 +1672,7 @@ class Growth(NamedTuple):
     path: str = "winner"  # whose growth: the search's winner's, the placed template's or a start's (module starts)
     workers: int = 1  # processes it grew on
     leads: dict[str, Any] | None = None  # the starts found and their gate's figures (module starts), where looked for
+    sharp: dict[str, Any] | None = None  # the creases kept on the front's cages and the template's (module sharp)
 
 
 def refine_face_limit(target: SurfaceTarget, max_faces: int) -> int:
@@ -1679,17 +1689,19 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
              pick: bool, tail: Callable[[int], float] | None = None) -> Growth | None:
     """The searched winner ``genome`` grown by :func:`~gsr_cad.reconstruct.refine.refine` until ``goal``
     (``deadline``: a ``perf_counter`` value). The search's front is re-measured first by the refinement's
-    measure (each cage after the search's evaluation polish, as a replayable genome); with ``pick`` (a
-    tolerance was asked) its simplest cage within ``goal``, if any, is taken without refining. None when
-    the winner is within ``goal`` already and no tolerance was asked. With time left (``RESTART_SHARE`` when the
-    winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template is refined too, and so
-    it is after a designer's start (module starts) took its place in the second process, with ``REACHED_SHARE``
-    left. A winner with
+    measure (each cage after the search's evaluation polish, as a replayable genome, and creased along the
+    part's edges where that gains, module :mod:`.sharp`); its simplest cage within ``goal``, if any, is taken
+    without refining. None when the winner is within ``goal`` already and no tolerance was asked (``pick``).
+    The template path starts from the template's creases where they gained on it. With time left
+    (``RESTART_SHARE`` when the winner stalls short of ``goal``, ``REACHED_SHARE`` when it meets it) the template
+    is refined too, and so it is after a designer's start (module starts) took its place in the second process,
+    with ``REACHED_SHARE`` left. A winner with
     faces other than quads, where the template has only quads, is not refined: the template is, instead. With two
     processes (``config.refine_workers``) the template grows beside the winner in a second one
     (:class:`~gsr_cad.reconstruct.second_path.TemplatePath`; with every fit's corners free beside a winner of the
     template's own structure), both paths' cages are points of the front, and the final cage is the simpler of
-    those within ``goal``, else the closer."""
+    those within ``goal``, else the closer; a cage of the front simpler than that and within ``goal``, or closer
+    than it, stands instead (``FRONT_PATH``)."""
     config = problem.config
     points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
     target = problem.target
@@ -1721,8 +1733,10 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     # the template itself fitted too: the search's own simplest cage may be a worse local minimum of the same
     # structure (example007's 8 vertices: a pyramid of moves at 5.9e-2 of the diagonal both ways, the box
     # fitted 3.7e-2)
+    plain: tuple = ()  # the template path's start: the template, its edges along the part's creased where that gains
+    sharp_info: dict[str, Any] = {"front_creased": 0, "seconds": 0.0}
     for n, _, g in [(problem.template.n_vertices, 0.0, ())] + list(searched):
-        if (n >= winner or (should_stop is not None and should_stop())
+        if ((g and n >= winner) or (should_stop is not None and should_stop())
                 or (deadline is not None and time.perf_counter() >= deadline)):
             break
         with contextlib.suppress(GsrError):
@@ -1734,12 +1748,26 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
                 moves = _reach(grower, (), mesh, v, via)
                 if moves is not None:
                     record(mesh, cost, g + moves)
+                    # a box-like part's simple cage: its edges along the part's creased (module sharp)
+                    clock = time.perf_counter()
+                    sharp = sharpened(grower, mesh, v, cost, FRONT_ROUNDS, deadline, coarse=not g)
+                    sharp_info["seconds"] += time.perf_counter() - clock
+                    creased = None if sharp is None else apply_ops(sharp[0], mesh)
+                    more = None if creased is None else _reach(grower, (), creased, sharp[1], (v,) if sharp[3] else ())
+                    if more is not None:
+                        record(mesh, sharp[2], g + sharp[0] + more)
+                        sharp_info["front_creased"] += 1
+                        if not g:  # with the moves to its fit: a cold fit of the creased cube may stall
+                            plain = sharp[0] + more
+                            sharp_info.update(template_creases=len(sharp[0]), template_distance=cost,
+                                              creased_distance=sharp[2])
                     break
             else:
                 record(mesh, grower.fit(mesh, 0)[1], g)
     meets = [entry for entry in front(found) if entry[1] <= goal]
-    if pick and meets:
-        return Growth(meets[0][2], meets[0][1], front(found), [])
+    if meets:  # the simplest cage within the goal: a tolerance asked for, or a creased cage simpler than the winner
+        return Growth(meets[0][2], meets[0][1], front(found), [], FRONT_PATH,
+                      sharp=sharp_info if config.sharp_edges else None)
     faces = refine_face_limit(target, config.refine_max_faces)
     started = time.perf_counter()
     work = grower.evaluations
@@ -1761,7 +1789,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     # every fit's corners free (another strategy, closer on some chains, behind on others)
     shaped = any(not isinstance(op, TranslateVertex) for op in genome)
     other = (TemplatePath(grower, goal, deadline, faces, tail, free_corners=not shaped and not other_start,
-                          genome=other_start) if quads and not stopped()
+                          genome=other_start or plain) if quads and not stopped()
              and refine_workers(config.refine_workers, None if deadline is None
                                 else deadline - time.perf_counter()) > 1 else None)
     other_path = start_path or "template"
@@ -1769,7 +1797,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # one process: the legs grow first (they gained on the body alone), the winner in the time left
         genome, other_start, path, other_path = other_start, genome, start_path, path
     try:
-        final, levels = refine(grower, genome, goal, deadline, faces, level,
+        final, levels = refine(grower, genome or plain, goal, deadline, faces, level,
                                stopped if other is None else lambda: stopped() or other.met(), tail, fills)
         if other is not None and (stopped() or levels[-1].cost <= goal):
             other.stop()  # a winner within the goal waits no longer: the template's cage so far is no simpler
@@ -1794,7 +1822,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # under a tube: its tapered walls made five blocks that gained on their body's box; they grew to 504
         # control vertices at 1.6e-3 of the diagonal both ways, the winner to 226 at 1.8e-3, and the template,
         # which they had displaced, reaches 74 at 1.5e-3)
-        again, more = refine(grower, (), goal, deadline, faces, level, should_stop, tail, fills,
+        again, more = refine(grower, plain, goal, deadline, faces, level, should_stop, tail, fills,
                              free_corners=not shaped)
         if rank(more[-1]) < rank(levels[-1]):
             final, levels, path = again, more, "template" if shaped else "template, free corners"
@@ -1805,15 +1833,15 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
         # the winner's structure stalled early (no op gains on it): the template grows instead, in the time left,
         # and the closer of the two stands (airplane: the search's bevelled cube, 10 vertices, two pentagons, no
         # split and no op gaining, stopped at 2.3e-2 of the diagonal with 210 of its 300 s left)
-        again, more = refine(grower, other_start, goal, deadline, faces, level, should_stop, tail, fills)
+        again, more = refine(grower, other_start or plain, goal, deadline, faces, level, should_stop, tail, fills)
         if more[-1].cost < last.cost:
             final, levels, path = again, more, other_path
     elif free and last.cost <= goal and left > REACHED_SHARE and last.control.n_faces > grower.template.n_faces:
         # the goal met early: the template grows too, up to a cage simpler than the winner's, and the simpler
         # of the two that meet the goal stands; both paths are points of the front (bone: the search's 24-vertex
         # winner reached 2e-3 of the diagonal at 258 vertices, the placed cube at 114)
-        again, more = refine(grower, other_start, goal, deadline, last.control.n_faces - 1, level, should_stop, tail,
-                             fills)
+        again, more = refine(grower, other_start or plain, goal, deadline, last.control.n_faces - 1, level,
+                             should_stop, tail, fills)
         if more[-1].cost <= goal and more[-1].control.n_vertices < last.control.n_vertices:
             final, levels, path = again, more, other_path
     # the kept path's first, all of them for at most config.refine_fill of the refinement's fit rounds (a run that met
@@ -1825,8 +1853,17 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     rows = [{"vertices": lv.control.n_vertices, "faces": lv.control.n_faces,
              "ops": _letters(lv.ops), "distance": lv.cost, "seconds": lv.seconds, "proposal": lv.kind}
             for lv in levels]
-    return Growth(final, levels[-1].cost, front(found), rows, path, 1 if other is None else 2,
-                  None if lead is None else lead[1])
+    cost, pareto = levels[-1].cost, front(found)
+    simpler = [e for e in pareto if e[0] < levels[-1].control.n_vertices and (e[1] <= goal or e[1] < cost)]
+    if simpler:
+        # a cage of the front simpler than the paths' last and within the goal, or closer where that is not
+        # (text_on_cube in 60 s: the template's creased cube, 8 control vertices at 5.3e-3 of the diagonal both
+        # ways, where the searched winner had grown to 66 at 5.9e-3)
+        n, cost, final = next(e for e in simpler if e[1] <= goal) if any(e[1] <= goal for e in simpler) else min(
+            simpler, key=lambda e: e[1])
+        path = FRONT_PATH
+    return Growth(final, cost, pareto, rows, path, 1 if other is None else 2,
+                  None if lead is None else lead[1], sharp_info if config.sharp_edges else None)
 
 
 def template_from_config(config: dict[str, Any]) -> PolyMesh:
