@@ -15,7 +15,7 @@ from gsr_cad.geometry.polymesh import SHARPNESS_INFINITE
 from gsr_cad.ops.mesh import Crease
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
 from gsr_cad.reconstruct.refine import apply_ops
-from gsr_cad.reconstruct.sharp import MIN_GAIN, sharp_ops, sharpened
+from gsr_cad.reconstruct.sharp import MIN_GAIN, crease_sets, sharp_ops, sharpened
 from gsr_cad.reconstruct.summary import sharp_line
 from gsr_cad.reconstruct.surface import FRONT_PATH, reconstruct_surface, surface_metrics
 
@@ -81,6 +81,32 @@ def test_creases_that_do_not_gain_are_not_kept(tmp_path):
     assert sharpened(problem, cage, vertices, distance / MIN_GAIN * 1.01, 20, coarse=True) is not None
     assert sharpened(problem, cage, vertices, distance, 20, coarse=True) is None
     assert len(ops) == 12
+
+
+def test_a_cylinder_gets_its_rims_creased_not_its_sides(tmp_path):
+    bd = pytest.importorskip("build123d", reason="the cad extra (build123d) builds the part")
+    path = tmp_path / "can.stl"
+    bd.export_stl(bd.Cylinder(1.0, 3.0), str(path), tolerance=1e-3, angular_tolerance=0.1)
+    problem = grower(surface_target(path))
+    cage, vertices, cost = _fitted(problem)
+    sets = crease_sets(problem, cage, cage.with_vertices(vertices), coarse=True)
+    assert len(sets) == 4 and len(sets[0]) == 12 and all(len(s) == 8 for s in sets[1:])
+    ops, creased, distance, _ = sharpened(problem, cage, vertices, cost, 20, coarse=True)
+    # the four edges along the can's axis (z) stay smooth: the cube rounds into the can, its rims sharp
+    ends = cage.vertices[cage.topology.edges[[op.edge for op in ops]]]
+    direction = ends[:, 1] - ends[:, 0]
+    assert len(ops) == 8 and np.all(np.abs(direction[:, 2]) < 0.1 * np.linalg.norm(direction, axis=1))
+    # closer than all twelve creased, fitted alike from both starts, measured independently of the fit
+    fits = [problem.fit(apply_ops(sets[0], start), 20, min_gain=1.0, adaptive=True)
+            for start in (cage.with_vertices(vertices), cage)]
+    squared_vertices, squared = min(fits, key=lambda fit: fit[1])
+    assert distance < 0.2 * squared and distance < 0.1 * cost
+
+    def both(ops, at):
+        d = surface_metrics(apply_ops(ops, cage).with_vertices(at), problem.target, problem.config)
+        return d["data_to_fit_mean"] + d["fit_to_data_mean"]
+
+    assert both(ops, creased) < 0.3 * both(sets[0], squared_vertices)
 
 
 _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
