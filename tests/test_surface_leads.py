@@ -13,7 +13,7 @@ from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
 from gsr_cad.reconstruct.blocks import BLOCK_PATH
 from gsr_cad.reconstruct.leads import LEAD_PATH, find_leads, lead_genomes
-from gsr_cad.reconstruct.starts import structured_start
+from gsr_cad.reconstruct.starts import start_prefixes, structured_start
 from gsr_cad.reconstruct.refine import refine
 from gsr_cad.reconstruct.summary import summary_lines
 from gsr_cad.reconstruct.surface import SurfaceProblem, place_template, reconstruct_surface
@@ -205,3 +205,24 @@ def test_a_start_in_the_second_process_leaves_the_template_its_turn(tmp_path, mo
     assert grown is not None and grown.workers == 2 and grown.leads["path"] == LEAD_PATH
     assert calls == [(winner, False), ((), False)]  # the winner's own structure: the template's corners stay convex
     assert grown.cost <= 2e-2
+
+
+def test_the_body_with_its_first_legs_are_points_of_the_front_below_the_start(tmp_path):
+    problem = _problem(_part(tmp_path, pin_x=(-2.0, 0.0, 2.0), bent=True))
+    genome, info = structured_start(problem)
+    assert info["path"] == LEAD_PATH and info["leads"]["grown"] == 6
+    body = problem.control_mesh(genome[:info["body_ops"]]).n_vertices
+    start = problem.control_mesh(genome)
+    points = start_prefixes(problem, genome, info["body_ops"])
+    assert points  # 98 + 16 per leg: the gap 98 -> 194 is filled at 130 (two legs whole)
+    for n, cost, history in points:
+        assert body < n < start.n_vertices and (n - body) % 16 == 0
+        cage = problem.control_mesh(history)
+        assert cage.n_vertices == n
+        assert "".join(op.letter for op in history).count("I") == (n - body) // 16
+        # the history replays to the cage that was measured (the fit's cost uses the last round's foot points as hints),
+        # creased where the start is
+        assert problem.fit(cage, 0)[1] == pytest.approx(cost, rel=1e-2)
+        assert bool(np.any(cage.edge_sharpness > 0)) == bool(np.any(start.edge_sharpness > 0))
+        # the legs it has pull it closer than the body's box alone
+        assert cost < info["leads"]["body_distance"]

@@ -9,7 +9,11 @@ Each start is gated twice, every cage fitted alike (:data:`GATE_ROUNDS`):
   gains :data:`MIN_GAIN` per added vertex where it has more.
 Of two kept, the closer stands. Its edges along the part's edges are then creased where that brings it closer
 (module :mod:`.sharp`: an E core's body and prongs, 144 control vertices, 2.7e-3 of the diagonal both ways smooth,
-8.3e-4 creased)."""
+8.3e-4 creased).
+
+The body with its first legs or blocks are points of the front between the body and the start
+(:func:`start_prefixes`): the start is grown as a whole, and the front would otherwise jump from the other paths'
+cages to it."""
 
 from __future__ import annotations
 
@@ -17,12 +21,14 @@ import math
 import time
 from typing import Any
 
+import numpy as np
+
 from ..errors import GsrError
-from ..geometry.polymesh import PolyMesh
-from ..ops.mesh import Inset
+from ..geometry.polymesh import SHARPNESS_INFINITE, PolyMesh
+from ..ops.mesh import Crease, Extrude, Inset, TranslateVertex
 from .blocks import BLOCK_PATH, block_genomes, find_blocks
 from .leads import LEAD_PATH, SPLITS, cube_frame, find_leads, lead_genomes
-from .refine import split_all
+from .refine import _reach_partial, apply_ops, fill_counts, split_all
 from .sharp import sharpened
 
 MIN_GAIN = 0.5
@@ -32,6 +38,8 @@ MIN_RATIO = 1.5
 """And the start must bring the cage this many times closer (a single short "lead" adds few vertices: LetterBlock's
 letter, 98 -> 114 control vertices, 2.1e-2 -> 1.7e-2 of the diagonal, a gain of 1.5 that is no leg)."""
 GATE_ROUNDS = 20
+PREFIX_ROUNDS = 40
+"""Rounds of the adaptive fit each prefix of a start gets (:func:`start_prefixes`)."""
 START_OPS = frozenset("VLIE")
 """The ops a start may hold must all be allowed (``op_kinds``); a block's region extrusion (X) is the face
 extrude (E) of a selection of faces, as a designer extrudes in Blender."""
@@ -65,9 +73,10 @@ def _gate(problem, genomes: tuple[tuple, tuple], deadline: float | None
 
 def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str, Any]] | None:
     """``(the start's genome, what was measured)`` (result.json ``lead_start``: ``path``, the kept start's
-    refinement path or None, and per kind ``leads`` / ``blocks`` what was found and the gate's figures); the genome
-    is empty when no start is kept. None when the template is not a placed cube, nothing is found or ops a start
-    needs are not allowed (:data:`START_OPS`)."""
+    refinement path or None, ``body_ops`` how many of its ops build its body (``prefixes``, added by the
+    refinement: :func:`start_prefixes`' points), and per kind ``leads`` / ``blocks``
+    what was found and the gate's figures); the genome is empty when no start is kept. None when the template is
+    not a placed cube, nothing is found or ops a start needs are not allowed (:data:`START_OPS`)."""
     axes = cube_frame(problem.template)
     if axes is None or not START_OPS <= set(problem.config.op_kinds):
         return None
@@ -104,11 +113,11 @@ def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dic
             figures["gain_on_template"] = gain
             figures["kept"] = figures["distance"] < cost and (gain is None or gain >= MIN_GAIN)
         if figures["kept"] and (best is None or figures["distance"] < best[0]):
-            best = (figures["distance"], path, genomes[1], gated[1])
+            best = (figures["distance"], path, genomes[1], gated[1], len(genomes[0]))
     if best is None:
         info["seconds"] = time.perf_counter() - started
         return (), info
-    info["path"] = best[1]
+    info["path"], info["body_ops"] = best[1], best[4]
     genome = best[2]
     # its edges slid onto the blocks' sides run along the part's edges: creased where that brings it closer
     sharp = sharpened(problem, problem.control_mesh(genome), best[3].vertices, best[0], GATE_ROUNDS, deadline)
@@ -134,3 +143,67 @@ def _template_box(problem, deadline: float | None) -> tuple[int, float, PolyMesh
         genome += split[0]
         state = split[1]
     return _fitted(problem, genome, deadline)
+
+
+def start_prefixes(problem, genome: tuple, body_ops: int, deadline: float | None = None
+                   ) -> list[tuple[int, float, tuple]]:
+    """Points of the front between a start's body and the start (``genome``, whose first ``body_ops`` ops build
+    the body): ``(control vertices, distance, genome)`` of the body with its first legs or blocks, each whole (a
+    leg's inset and extrusions), at the sizes the refinement fills between its levels
+    (:func:`~gsr_cad.reconstruct.refine.fill_counts`). The body is first moved to where the whole start, fitted as
+    the gate fits, puts it (the ops only append vertices: the body's are the start's first), so that the legs or
+    blocks grow out of the fitted body; each prefix is then creased where the start is and fitted
+    (:data:`PREFIX_ROUNDS`). A fit of the body with a few blocks from the box stalls (example013, 186 control
+    vertices: 1.2e-2 of the diagonal both ways; 3.7e-3 grown from the moved body, where the front held 6.3e-3 at 194
+    from the template's path and the quad-remesh baseline 5.4e-3 at 201). Where the ops do not apply to the moved
+    body, the prefix is built on the box and fitted from the fitted start's positions instead. Each is measured as
+    its moves replay. Empty where time runs out (``deadline``)."""
+    end = next((i for i in range(body_ops, len(genome)) if isinstance(genome[i], (Crease, TranslateVertex))),
+               len(genome))
+    # a leg or block is whole before each op that starts the next (a leg's extrusions follow its inset)
+    cuts = [i for i in range(body_ops + 1, end) if type(genome[i]) is not Extrude]
+    try:
+        full = problem.control_mesh(genome)
+        body = problem.control_mesh(genome[:body_ops])
+        sizes = [problem.control_mesh(genome[:i]).n_vertices for i in cuts]
+        picked = fill_counts(sizes, body.n_vertices, full.n_vertices)
+        if not picked or (deadline is not None and time.perf_counter() >= deadline):
+            return []
+        fitted, cost = problem.fit(full, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline)
+        moved, _, _ = _reach_partial(problem, genome[:body_ops], body, fitted[:body.n_vertices], deadline)
+    except GsrError:
+        return []
+    edges = full.topology.edges
+    count = full.n_vertices
+    sharp = edges[full.edge_sharpness >= SHARPNESS_INFINITE]
+    creased = set((sharp.min(axis=1) * count + sharp.max(axis=1)).tolist())
+    out = []
+    for k in picked:
+        best = None
+        # grown from the moved body, fitted from there; else built on the box and fitted from the start's positions
+        # (a leg's inset, sized on the box, may not fit a moved face)
+        for part, start in ((moved + genome[body_ops:cuts[k]], None), (genome[:cuts[k]], fitted)):
+            if deadline is not None and time.perf_counter() >= deadline:
+                break
+            try:
+                mesh = problem.control_mesh(part)
+                ends = mesh.topology.edges
+                keys = (ends.min(axis=1) * count + ends.max(axis=1)).tolist()
+                creases = tuple(Crease(e, float(SHARPNESS_INFINITE)) for e, key in enumerate(keys) if key in creased)
+                state = apply_ops(creases, mesh) if creases else mesh
+                if state is None:
+                    continue
+                via = () if start is None else (start[:mesh.n_vertices],)
+                vertices, cost = problem.fit(state if start is None else state.with_vertices(via[0]), PREFIX_ROUNDS,
+                                             min_gain=1.0, adaptive=True, deadline=deadline)
+                if not math.isfinite(cost):
+                    continue
+                built, reached, _ = _reach_partial(problem, part + creases, state, vertices, deadline, via)
+                cost = problem.fit(reached, 0)[1]
+            except GsrError:
+                continue
+            if math.isfinite(cost) and (best is None or cost < best[1]):
+                best = (mesh.n_vertices, float(cost), built)
+        if best is not None:
+            out.append(best)
+    return out

@@ -98,7 +98,7 @@ from ..ops.rewrite import simplify_history
 from .config import REFINE_STALL_GAIN, SurfaceConfig
 from .features import CreaseProposals
 from .inputs import CLOUD_SAMPLING_NEIGHBOURS, SurfaceTarget, load_template, surface_target, validate_template
-from .starts import structured_start
+from .starts import start_prefixes, structured_start
 from .placement import Placement, fit_template, place_cube
 from .refine import Level, _inradius, _reach, apply_ops, refine, snapped_within
 from .result import MAX_OPS, Result
@@ -1796,6 +1796,13 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     if other is None and other_start:
         # one process: the legs grow first (they gained on the body alone), the winner in the time left
         genome, other_start, path, other_path = other_start, genome, start_path, path
+    if lead is not None and lead[0] and not stopped():
+        # the body with its first legs or blocks: points of the front below the start (module starts), fitted
+        # here while the second process grows (the paths run to the deadline and would leave them no time)
+        points = start_prefixes(grower, lead[0], lead[1]["body_ops"], deadline)
+        for n, cost, history in points:
+            keep(n, cost, history)
+        lead[1]["prefixes"] = [{"vertices": n, "distance": cost} for n, cost, _ in points]
     try:
         final, levels = refine(grower, genome or plain, goal, deadline, faces, level,
                                stopped if other is None else lambda: stopped() or other.met(), tail, fills)
