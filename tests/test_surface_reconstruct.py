@@ -95,7 +95,7 @@ def test_same_seed_same_result_serial_or_process_pool():
     first. (The history's simplification runs in this process either way, after them: left out.)"""
     s = random_ops_sample(3)
     target = surface_target(s.target)
-    small = dict(SMALL, refine_max_faces=48, simplify_history=False)
+    small = dict(SMALL, refine_max_faces=30, simplify_history=False)
     a = reconstruct_surface(target, seed=7, **small)
     assert len(a.metrics["refinement"]) >= 2, "the refinement grew the cage"
 
