@@ -153,8 +153,9 @@ _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2,
               generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1)
 
 
-def test_a_run_on_a_gull_wing_part_grows_its_legs_into_the_history(tmp_path):
-    result = reconstruct_surface(_part(tmp_path, bent=True), seed=1, **_SMALL)
+@pytest.mark.parametrize("seconds", [40, pytest.param(60, marks=pytest.mark.slow)])  # CI: 40 s
+def test_a_run_on_a_gull_wing_part_grows_its_legs_into_the_history(tmp_path, seconds):
+    result = reconstruct_surface(_part(tmp_path, bent=True), seed=1, **dict(_SMALL, refine_seconds=seconds))
     m = result.metrics
     legs = m["lead_start"]["leads"]
     assert legs["kept"] and legs["found"] == legs["grown"] == 4
