@@ -72,10 +72,11 @@ def _gate(problem, genomes: tuple[tuple, tuple], deadline: float | None
 
 
 def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str, Any]] | None:
-    """``(the start's genome, what was measured)`` (result.json ``lead_start``: ``path``, the kept start's
-    refinement path or None, ``body_ops`` how many of its ops build its body (``prefixes``, added by the
-    refinement: :func:`start_prefixes`' points), and per kind ``leads`` / ``blocks``
-    what was found and the gate's figures); the genome is empty when no start is kept. None when the template is
+    """``(the start's genome, what was measured)``; the genome is the start's ops, its creases and the moves to its
+    fit, so that a path with no time to fit it again starts from it as fitted (result.json ``lead_start``: ``path``,
+    the kept start's refinement path or None, ``body_ops`` how many of its ops build its body (``prefixes``, added by
+    the refinement: :func:`start_prefixes`' points), and per kind ``leads`` / ``blocks`` what was found and the
+    gate's figures); the genome is empty when no start is kept. None when the template is
     not a placed cube, nothing is found or ops a start needs are not allowed (:data:`START_OPS`)."""
     axes = cube_frame(problem.template)
     if axes is None or not START_OPS <= set(problem.config.op_kinds):
