@@ -17,7 +17,7 @@ from gsr_cad.errors import GsrError
 from gsr_cad.geometry.polymesh import PolyMesh
 from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import SurfaceTarget, surface_target
-from gsr_cad.reconstruct.surface import DEFAULT_FIT_POINTS, REFINE_POINTS, SurfaceProblem, surface_metrics
+from gsr_cad.reconstruct.surface import DEFAULT_FIT_POINTS, SurfaceProblem, surface_metrics
 
 FIT_ROUNDS = 60
 """Adaptive (damped, faired) rounds of the baseline's fit, then half as many without the fairing rows, as the
@@ -89,7 +89,7 @@ def baseline(target: SurfaceTarget, vertices: int, config: SurfaceConfig | None 
 def fitted(target: SurfaceTarget, config: SurfaceConfig, cage: PolyMesh) -> PolyMesh:
     """``cage`` fitted to ``target`` to convergence (:data:`FIT_ROUNDS`), with the fit the refinement gives its
     own cages; raises :class:`GsrError` when the subdivision refuses it (a non-manifold remesh)."""
-    points = max(config.max_target_points or DEFAULT_FIT_POINTS, REFINE_POINTS)
+    points = max(config.max_target_points or DEFAULT_FIT_POINTS, config.refine_points)
     problem = SurfaceProblem(target, dataclasses.replace(config, max_target_points=points), cage,
                              exact_back=target.faces is not None, exact_facets=True)
     v, cost = problem.fit(cage, FIT_ROUNDS, min_gain=1.0, adaptive=True)

@@ -26,7 +26,7 @@ from gsr_cad.reconstruct.config import SurfaceConfig
 from gsr_cad.reconstruct.inputs import surface_target
 from gsr_cad.reconstruct.sharp import sharpened
 from gsr_cad.reconstruct.starts import structured_start
-from gsr_cad.reconstruct.surface import (FRONT_ROUNDS, REFINE_POINTS, SEARCH_POINTS, SurfaceProblem, _TARGET_SEED,
+from gsr_cad.reconstruct.surface import (FRONT_ROUNDS, SEARCH_POINTS, SurfaceProblem, _TARGET_SEED,
                                          place_template)
 
 
@@ -43,7 +43,7 @@ def row(path: Path) -> str:
     config = SurfaceConfig()
     target = surface_target(path)
     template = place_template("cube", target.subsampled(SEARCH_POINTS, _TARGET_SEED), config).mesh
-    grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=REFINE_POINTS), template,
+    grower = SurfaceProblem(target, dataclasses.replace(config, max_target_points=config.refine_points), template,
                             exact_back=target.faces is not None, exact_facets=True)
     grower.max_faces = config.refine_max_faces
     found = structured_start(grower)

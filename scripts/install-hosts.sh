@@ -13,6 +13,6 @@ fi
 echo "CAD hosts: installing ${missing[*]} from Debian packages (a few minutes)"
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq >/dev/null 2>&1
-apt-get install -y -qq "${missing[@]}" >/tmp/gsr-install-hosts.log 2>&1 \
+apt-get install -y -qq -o DPkg::Lock::Timeout=600 "${missing[@]}" >/tmp/gsr-install-hosts.log 2>&1 \
   || echo "CAD hosts: apt-get failed (see /tmp/gsr-install-hosts.log); their round-trip tests will skip"
 exit 0

@@ -9,7 +9,9 @@ if [ ! -x .venv/bin/python ]; then
   if ! "$py" -m venv .venv 2>/dev/null; then
     rm -rf .venv
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv python3-pip >/dev/null
+      # (the test command installs the CAD hosts meanwhile: wait for their lock)
+      apt-get update -qq -o DPkg::Lock::Timeout=600 || true
+      DEBIAN_FRONTEND=noninteractive apt-get install -y -qq -o DPkg::Lock::Timeout=600 python3-venv python3-pip >/dev/null
     fi
     "$py" -m venv .venv
   fi

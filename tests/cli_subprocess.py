@@ -23,7 +23,7 @@ TINY_CURVE = ("--generations", "2", "--population", "4", "--initial-population",
 TINY_SURFACE = ("--generations", "1", "--population", "4", "--initial-population", "4", "--n-parents", "2",
                 "--max-children", "1", "--n-perturb", "1", "--n-newcomers", "1", "--polish-rounds", "0",
                 "--final-polish-rounds", "1", "--no-simplify-history", "--refine-max-faces", "24",
-                "--refine-seconds", "5",
+                "--refine-seconds", "5", "--refine-points", "3000",
                 "--formats", "none", "--quiet")
 """Settings that make a surface run short: a small search, and a refinement bounded by faces and by seconds (a
 tetrahedron's sharp corners never reach the refinement's goal: its 40-face growth took 40-100 s in its default

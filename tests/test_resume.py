@@ -22,7 +22,8 @@ CURVE = dict(generations=12, stall_generations=0, population=20, initial_populat
 SURFACE = dict(generations=3, population=6, initial_population=6, n_parents=4, max_children=2, n_perturb=2,
                n_newcomers=2, final_polish_rounds=2, polish_rounds=1, simplify_history=False,
                op_kinds="VELBFS",  # no inset: the protrusion start would solve inset_extrude at generation 0
-               refine_max_faces=24, refine_seconds=0)  # a short refinement, bounded by faces, not seconds
+               refine_max_faces=24, refine_seconds=0,  # a short refinement, bounded by faces, not seconds
+               refine_points=3000)
 
 
 def _stop_after(generation: int):

@@ -146,10 +146,11 @@ def test_a_start_needs_its_ops_allowed(tmp_path):
 
 
 _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1)
+              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1,
+              refine_points=3000)
 
 
-@pytest.mark.parametrize("seconds", [40, pytest.param(60, marks=pytest.mark.slow)])  # CI: 40 s
+@pytest.mark.parametrize("seconds", [30, pytest.param(60, marks=pytest.mark.slow)])  # CI: 30 s
 def test_a_run_on_an_e_core_grows_its_prongs_into_the_history(tmp_path, seconds):
     result = reconstruct_surface(_core(tmp_path), seed=1, **dict(_SMALL, refine_seconds=seconds))
     m = result.metrics

@@ -13,7 +13,7 @@ from gsr_cad.reconstruct.surface import (SurfaceProblem, _evaluated_from, box_te
                                          surface_metrics)
 
 SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-             generations=1, final_polish_rounds=5, simplify_history=False)
+             generations=1, final_polish_rounds=5, simplify_history=False, refine_points=3000)
 
 
 def test_front_keeps_only_the_non_dominated():

@@ -150,10 +150,11 @@ def test_of_two_starts_kept_the_closer_stands_as_fitted(tmp_path, monkeypatch):
 
 
 _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1)
+              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1,
+              refine_points=3000)
 
 
-@pytest.mark.parametrize("seconds", [40, pytest.param(60, marks=pytest.mark.slow)])  # CI: 40 s
+@pytest.mark.parametrize("seconds", [30, pytest.param(60, marks=pytest.mark.slow)])  # CI: 30 s
 def test_a_run_on_a_gull_wing_part_grows_its_legs_into_the_history(tmp_path, seconds):
     result = reconstruct_surface(_part(tmp_path, bent=True), seed=1, **dict(_SMALL, refine_seconds=seconds))
     m = result.metrics
@@ -195,7 +196,7 @@ def test_with_two_processes_the_second_path_grows_the_legs_and_the_template_has_
     monkeypatch.setattr(surface_module, "refine", spied)
     target = _part(tmp_path, bent=True)
     # smooth cages: the template's creased cube would meet this loose goal before any path grows (module sharp)
-    config = SurfaceConfig(refine_workers=2, refine_fill=0.0, sharp_edges=False)
+    config = SurfaceConfig(refine_workers=2, refine_fill=0.0, sharp_edges=False, refine_points=3000)
     problem = SurfaceProblem(target, config, place_template("cube", target, config).mesh)
     winner = (Extrude(5, 0.3),)  # a boss the part does not have: the search's winner stays the first path
     # a loose goal: both paths meet it at once, and the template, whose place the legs took, grows after them

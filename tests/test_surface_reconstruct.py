@@ -23,7 +23,7 @@ from gsr_cad.reconstruct.surface import SurfaceProblem, make_template, reconstru
 from gsr_cad.reconstruct.surface_samples import SURFACE_SAMPLES, random_ops_sample
 
 SMALL = dict(population=12, initial_population=12, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-             generations=3)
+             generations=3, refine_points=3000)
 
 
 def sample_target(name: str, kind: str = "mesh"):

@@ -42,8 +42,10 @@ def _blob(seed: int) -> PolyMesh:
 
 
 _SMALL_RUN = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-                  generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500)
-"""A search of two small generations: the runs below test what the refinement does after it."""
+                  generations=2, final_polish_rounds=4, simplify_history=False, max_target_points=1500,
+                  refine_points=3000)
+"""A search of two small generations: the runs below test what the refinement does after it (on 3,000 target
+points, not the default 8,000: the same paths, in less time)."""
 
 
 def test_a_split_keeps_the_limit_surface_and_is_one_catmull_clark_step():
@@ -388,6 +390,23 @@ def test_a_fit_stops_at_the_floor_and_a_fit_from_there_runs_no_round():
     assert problem.fit_rounds == 0 and same == pytest.approx(cost, rel=1e-6) and np.array_equal(again, v)
     deeper = SurfaceProblem(target, SurfaceConfig(max_target_points=1500, refine_until=1e-8), truth)
     assert deeper.fit(start, 200, min_gain=1.0 - 1e-12)[1] < cost / 4  # a goal below the floor moves it
+
+
+def test_a_settled_fit_stops_when_its_rounds_gain_little_and_keeps_its_distance():
+    """``settle``: an adaptive fit of a cage that cannot hold the target exactly converges, then alternates undone
+    and retried rounds until its rounds run out; settled, it stops once five rounds gained under 0.2 %."""
+    from gsr_cad.reconstruct.surface import SETTLE_GAIN
+
+    target = surface_target(limit_mesh(_blob(1), 3), "blob")
+    cube = box_template(target)
+    problem = SurfaceProblem(target, SurfaceConfig(max_target_points=1500), cube)
+    cube = cube.with_vertices(problem.fit(cube, 12, min_gain=1.0, adaptive=True)[0])  # near its fit, as a level's
+    _, full = problem.fit(cube, 60, min_gain=1.0, adaptive=True)
+    rounds = problem.fit_rounds
+    _, settled = problem.fit(cube, 60, min_gain=1.0, adaptive=True, settle=True)
+    assert rounds > 50 and problem.fit_rounds < 40  # measured: 61 and 28
+    # what the rounds after it gained is at most what so few rounds gain at the rate that stopped it
+    assert full <= settled <= full * (1 + 4 * SETTLE_GAIN)
 
 
 def test_a_fit_past_its_deadline_runs_no_round():

@@ -110,7 +110,8 @@ def test_a_cylinder_gets_its_rims_creased_not_its_sides(tmp_path):
 
 
 _SMALL = dict(population=10, initial_population=10, n_parents=4, max_children=2, n_perturb=2, n_newcomers=2,
-              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1)
+              generations=2, final_polish_rounds=4, simplify_history=False, refine_seconds=60, refine_workers=1,
+              refine_points=3000)
 
 
 def test_a_run_on_a_box_ends_at_the_creased_cube(tmp_path):

@@ -125,7 +125,8 @@ SURFACE_LIMITS = {**_RUN_LIMITS, "move_range": (0, 10), "extrude_range": (0, 10)
                   "polish_niches": (1, 100), "polish_damping": (0, 1000), "history_tolerance": (0, 1),
                   "threshold": (0, 10), "n_parents": (0, 10_000), "max_children": (0, 10_000),
                   "n_perturb": (0, 10_000), "n_newcomers": (0, 10_000), "max_duplicates": (1, 10_000),
-                  "refine_until": (0, 10), "refine_max_faces": (1, 100_000), "refine_share": (0, 0.99),
+                  "refine_until": (0, 10), "refine_max_faces": (1, 100_000),
+                  "refine_points": (100, 20_000_000), "refine_share": (0, 0.99),
                   "refine_seconds": (0, 2_592_000), "refine_fill": (0, 10), "refine_stall": (0, 1_000_000),
                   "refine_workers": (0, 2)}
 """Allowed range of each numeric surface setting (distances are fractions of the target's diagonal)."""
@@ -374,6 +375,10 @@ class SurfaceConfig:
         "Distance (mean of both directions) at which the refinement stops when no --max-distance is given.",
         length=True)
     refine_max_faces: int = _field(1600, "Most faces the refinement may grow the cage to.")
+    refine_points: int = _field(
+        8000,
+        "Least target points the refinement fits (at least --max-target-points; its cages reach hundreds of "
+        "control vertices): fewer is faster and coarser; the reported distances use every point either way.")
     survival: str = _field(
         "cost",
         "How the search keeps its population: cost (the lowest distances, the paper's) or nsga2 (NSGA-II's rank and "
@@ -453,7 +458,7 @@ class SurfaceConfig:
                       "polish_every", "polish_niches", "population", "initial_population", "min_initial_ops",
                       "max_initial_ops", "min_ops", "n_parents", "max_children", "n_perturb", "n_newcomers",
                       "max_duplicates", "generations", "stall_generations", "refine_stall", "refine_max_faces",
-                      "refine_workers"),
+                      "refine_points", "refine_workers"),
                _whole(0),
                "be a whole number >= 0")
         _check(self, ("levels", "polish_niches", "population", "initial_population", "min_initial_ops", "min_ops",

@@ -492,7 +492,7 @@ class _Fitter:
         start = time.perf_counter()
         out = self.problem.fit(mesh, rounds, min_gain=1.0, adaptive=True, stiffness=stiffness,
                                deadline=self.end(mesh), fairing=fairing, convex=convex and not self.free_corners,
-                               should_stop=self.should_stop)
+                               should_stop=self.should_stop, settle=True)
         done = getattr(self.problem, "fit_rounds", rounds)
         self.timing.add("round", mesh.n_vertices, (time.perf_counter() - start) / (done + 1))
         return out
@@ -973,7 +973,7 @@ def _refit_reached(problem, step: tuple, reached: PolyMesh, cost: float, deadlin
         # the cage the moves did reach is sound: fitted again from there, its positions mostly replay
         try:
             v, _ = problem.fit(reached, LEVEL_ROUNDS, min_gain=1.0, adaptive=True, stiffness=STIFFNESS,
-                               deadline=deadline, fairing=0.0)
+                               deadline=deadline, fairing=0.0, settle=True)
         except GsrError:
             break
         step, reached, left = _reach_partial(problem, step, reached, v, deadline)

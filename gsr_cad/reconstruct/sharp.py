@@ -122,7 +122,8 @@ def sharpened(problem, cage: PolyMesh, fitted: np.ndarray, cost: float, rounds: 
             if state is None or (deadline is not None and time.perf_counter() >= deadline):
                 break
             try:
-                vertices, creased = problem.fit(state, rounds, min_gain=1.0, adaptive=True, deadline=deadline)
+                vertices, creased = problem.fit(state, rounds, min_gain=1.0, adaptive=True, deadline=deadline,
+                                                settle=True)
             except GsrError:
                 continue
             if np.isfinite(creased) and (found is None or creased < found[2]):

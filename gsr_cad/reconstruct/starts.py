@@ -52,7 +52,7 @@ def _fitted(problem, genome: tuple, deadline: float | None) -> tuple[int, float,
         return None
     try:
         mesh = problem.control_mesh(genome)
-        vertices, cost = problem.fit(mesh, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline)
+        vertices, cost = problem.fit(mesh, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline, settle=True)
     except GsrError:
         return None
     return (mesh.n_vertices, cost, mesh.with_vertices(vertices)) if math.isfinite(cost) and cost > 0 else None
@@ -176,7 +176,7 @@ def start_prefixes(problem, genome: tuple, body_ops: int, deadline: float | None
         picked = fill_counts(sizes, body.n_vertices, full.n_vertices)
         if not picked or (deadline is not None and time.perf_counter() >= deadline):
             return []
-        fitted, cost = problem.fit(full, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline)
+        fitted, cost = problem.fit(full, GATE_ROUNDS, min_gain=1.0, adaptive=True, deadline=deadline, settle=True)
         moved, _, _ = _reach_partial(problem, genome[:body_ops], body, fitted[:body.n_vertices], deadline)
     except GsrError:
         return []
@@ -202,7 +202,7 @@ def start_prefixes(problem, genome: tuple, body_ops: int, deadline: float | None
                     continue
                 via = () if start is None else (start[:mesh.n_vertices],)
                 vertices, cost = problem.fit(state if start is None else state.with_vertices(via[0]), PREFIX_ROUNDS,
-                                             min_gain=1.0, adaptive=True, deadline=deadline)
+                                             min_gain=1.0, adaptive=True, deadline=deadline, settle=True)
                 if not math.isfinite(cost):
                     continue
                 built, reached, _ = _reach_partial(problem, part + creases, state, vertices, deadline, via)
