@@ -31,14 +31,19 @@ machine's CPUs, and a refinement's second process beside each would slow them. T
 it (``refine_workers=2``) or clear the variable."""
 
 
-HEAVY_FIRST = ("test_surface_refine.py", "test_surface_reconstruct.py", "test_signals.py", "test_surface_front.py",
-               "test_surface_history_moves.py", "test_export_surface_step.py", "test_surface_budget.py")
-"""Modules of long tests (runs of the refinement, signals sent to whole runs), collected first: xdist hands out
-tests in collection order, and long ones last left a worker idle while the other finished them."""
+HEAVY_FIRST = ("test_surface_leads.py", "test_surface_refine.py", "test_surface_reconstruct.py",
+               "test_surface_blocks.py", "test_surface_sharp.py", "test_export_curve_forms.py", "test_surface_cli.py",
+               "test_export_surface_hosts.py", "test_signals.py", "test_surface_front.py", "test_surface_budget.py",
+               "test_huge_inputs.py", "test_batch.py", "test_resume.py", "test_surface_history_moves.py",
+               "test_export_surface_step.py")
+"""Modules of long tests (runs of the refinement, host round trips, signals sent to whole runs), longest first
+(``--durations``), collected before the others: xdist hands out tests in collection order, and long ones last left
+a worker idle while the other finished them."""
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    items.sort(key=lambda item: item.path.name not in HEAVY_FIRST)
+    rank = {name: k for k, name in enumerate(HEAVY_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(HEAVY_FIRST)))
 
 
 @pytest.fixture

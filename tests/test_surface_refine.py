@@ -778,7 +778,8 @@ def test_the_template_grows_in_a_second_process_and_the_closer_path_stands(monke
 
     monkeypatch.setattr(surface_module, "TemplatePath", Spied)
     target = surface_target(limit_mesh(_blob(3), 3), "blob")
-    config = SurfaceConfig(max_target_points=1000, refine_max_faces=24, refine_fill=0.0, refine_workers=2)
+    config = SurfaceConfig(max_target_points=1000, refine_max_faces=24, refine_fill=0.0, refine_workers=2,
+                           refine_points=3000)
     problem = SurfaceProblem(target, config, box_template(target))
     moved = (TranslateVertex(0, (0.05, 0.0, 0.0)),)  # the template's structure: its second path, free corners
     assert surface_module._refined(problem, moved, 1e-9, time.perf_counter() + 5, [], None, False) is not None
