@@ -54,7 +54,7 @@ LEVEL_KINDS = ("L1", "L3", "L4", "cloud5000")
 """Optional targets: the true control mesh's limit tessellated at level 1, 3 or 4 (``mesh`` is level 2),
 and 5,000 points drawn by area on its exact limit surface."""
 QUICK_BUDGET = dict(population=20, initial_population=20, n_parents=6, max_children=3, n_perturb=3,
-                    n_newcomers=3, generations=3)
+                    n_newcomers=3, generations=3, refine_max_faces=30)
 PAPER = {"extended": "mean 1e-4 (max 1e-3), 240 s", "flattened_extended": "mean 2e-3 (max 5e-3), ~1400 s",
          "inset_extrude": "I then E by generation 50", "random_ops": "similar ops, one extra edge loop"}
 FLOOR = 1e-5  # distances below this (of the diagonal) count as equal when comparing cloud and mesh

@@ -66,6 +66,40 @@ def test_foot_points_equal_brute_force(mesh_index, spread):
     np.testing.assert_allclose(np.linalg.norm(found.point - x, axis=1), found.distance, atol=1e-12)
 
 
+def test_foot_points_beyond_a_patch_border_converge_along_it():
+    """A point whose foot on a patch lies on the patch's border: the parameter at its bound stays there and the
+    other converges along the border (a joint Newton step, clipped, zigzags and was still moving after the
+    iterations ran out). Started again from what it found, the Newton step does not move it."""
+    mesh = curved_meshes()[1]
+    surface = LimitSurface.of(mesh, depth=3)
+    rng = np.random.default_rng(11)
+    count = 400
+    patch = rng.integers(0, surface.layout.n_patches, count)
+    u, v = rng.uniform(0.0, 1.0, count), rng.uniform(0.0, 1.0, count)
+    p, su, sv = surface.evaluate(patch, u, v, derivatives=True)
+    n = np.cross(su, sv)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    # pushed out across a border of the patch (tangentially) and off the surface (along the normal)
+    side = rng.integers(0, 4, count)
+    push = np.where((side < 2)[:, None], su, sv) * np.where(side % 2 == 0, -1.0, 1.0)[:, None]
+    x = p + rng.uniform(0.2, 0.6, (count, 1)) * push + rng.uniform(-0.05, 0.05, (count, 1)) * n
+    fu, fv = surface.foot_points(patch, rng.uniform(0.3, 0.7, count), rng.uniform(0.3, 0.7, count), x)
+    border = (fu <= 0) | (fu >= 1) | (fv <= 0) | (fv >= 1)
+    assert border.sum() > count // 4
+    again_u, again_v = surface.foot_points(patch, fu, fv, x)
+    moved = np.maximum(np.abs(again_u - fu), np.abs(again_v - fv))
+    assert np.quantile(moved[border], 0.99) < 1e-9
+    # and the foot is the nearest point of that border: no point along it is nearer
+    t = np.linspace(0.0, 1.0, 2001)
+    for i in np.flatnonzero(border)[:40]:
+        along_u = fv[i] in (0.0, 1.0)
+        uu = t if along_u else np.full_like(t, fu[i])
+        vv = np.full_like(t, fv[i]) if along_u else t
+        grid = surface.evaluate(np.full(t.size, patch[i]), uu, vv)
+        found = np.linalg.norm(surface.evaluate(patch[i:i + 1], fu[i:i + 1], fv[i:i + 1])[0] - x[i])
+        assert found <= np.linalg.norm(grid - x[i], axis=1).min() + 1e-12
+
+
 def test_offsets_along_the_normal_are_the_distance():
     mesh = curved_meshes()[1]
     surface = LimitSurface.of(mesh)

@@ -139,8 +139,13 @@ def test_the_blocks_pay_on_an_e_core_and_refine_from_there(tmp_path):
     assert levels[-1].cost < figures["distance"]
 
 
-def test_a_start_needs_its_ops_allowed(tmp_path):
+def test_a_start_needs_its_ops_allowed_and_room_in_the_face_budget(tmp_path):
     problem = _problem(_core(tmp_path))
+    axes = cube_frame(problem.template)
+    body, start, _ = block_genomes(problem, find_blocks(problem.target, axes), axes)
+    faces = max(problem.control_mesh(body).n_faces, problem.control_mesh(start).n_faces)
+    # a start larger than the refinement may grow is no start; one that fits the budget is gated as before
+    assert structured_start(problem, max_faces=faces - 1) is None
     problem.config = dataclasses.replace(problem.config, op_kinds="VLBFS")
     assert structured_start(problem) is None
 

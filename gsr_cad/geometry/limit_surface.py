@@ -262,6 +262,7 @@ class LimitSurface:
         self._poles16 = self.poles.reshape(-1, 16, 3)
         self.corner_points = layout.corners @ v
         self._groups: list | None = None
+        self._pending: TriangleSet | None = None  # the pending triangles, once a query may end on them
         self._sampled: tuple[Hits, tuple] | None = None  # the last samples() and the layout's maps they came from
 
     @classmethod
@@ -279,21 +280,18 @@ class LimitSurface:
         radius of a sample of its own)."""
         if self._groups is None:
             dep = self.layout.depth
+            # a uniform bicubic's derivative along u (v) is at most its largest pole step along u (v), and
+            # a cell's points are within 1 / (2 m) of its centre along each
+            steps = (np.linalg.norm(np.diff(self.poles, axis=1), axis=3).max(axis=(1, 2))
+                     + np.linalg.norm(np.diff(self.poles, axis=2), axis=3).max(axis=(1, 2)))
             self._groups = []
             for d in np.unique(dep):
                 sel = np.flatnonzero(dep == d)
                 m = _SEARCH_GRID.get(int(d), 1)
                 owner, params, basis = self.layout.maps.get(("grid", int(d))) or _grid_maps(self.layout, sel, m)
-                pts = (basis @ self._poles16[sel]).reshape(-1, 3)
-                # a uniform bicubic's derivative along u (v) is at most its largest pole step along u (v), and
-                # a cell's points are within 1 / (2 m) of its centre along each
-                poles = self.poles[sel]
-                step_u = np.linalg.norm(np.diff(poles, axis=1), axis=3).max(axis=(1, 2))
-                step_v = np.linalg.norm(np.diff(poles, axis=2), axis=3).max(axis=(1, 2))
-                radius = np.repeat((step_u + step_v) / (2 * m), m * m)
-                self._groups.append((cKDTree(pts), owner, params, radius))
+                self._groups.append((cKDTree((basis @ self._poles16[sel]).reshape(-1, 3)), owner, params,
+                                     np.repeat(steps[sel] / (2 * m), m * m)))
             if len(self.layout.triangles):
-                self._pending = TriangleSet(self.corner_points, self.layout.triangles)
                 corners = self.corner_points[self.layout.triangles]
                 centroid = corners.mean(axis=1)
                 reach = float(np.linalg.norm(corners - centroid[:, None], axis=2).max()) * (1 + 1e-9)
@@ -330,8 +328,16 @@ class LimitSurface:
             ok = det > 1e-14 * (a * c + 1e-300)
             det = np.where(ok, det, 1.0)
             # a degenerate Jacobian falls back to a gradient step along each direction
-            du = np.where(ok, (c * ru - b * rv) / det, np.divide(ru, a, out=np.zeros_like(a), where=a > 0))
-            dv = np.where(ok, (a * rv - b * ru) / det, np.divide(rv, c, out=np.zeros_like(c), where=c > 0))
+            alone_u = np.divide(ru, a, out=np.zeros_like(a), where=a > 0)
+            alone_v = np.divide(rv, c, out=np.zeros_like(c), where=c > 0)
+            du = np.where(ok, (c * ru - b * rv) / det, alone_u)
+            dv = np.where(ok, (a * rv - b * ru) / det, alone_v)
+            # a parameter on its bound whose step leaves the patch stays there and the other takes its own
+            # Newton step along the border (projected Newton): the joint step, clipped, would zigzag
+            out_u = ((ua <= 0.0) & (du < 0.0)) | ((ua >= 1.0) & (du > 0.0))
+            out_v = ((va <= 0.0) & (dv < 0.0)) | ((va >= 1.0) & (dv > 0.0))
+            du = np.where(out_u, 0.0, np.where(out_v, alone_u, du))
+            dv = np.where(out_v, 0.0, np.where(out_u, alone_v, dv))
             nu, nv = np.clip(ua + du, 0.0, 1.0), np.clip(va + dv, 0.0, 1.0)
             u[active], v[active] = nu, nv
             active = active[np.maximum(np.abs(nu - ua), np.abs(nv - va)) > 1e-12]
@@ -372,6 +378,8 @@ class LimitSurface:
             tree, reach = self._pending_index
             near = np.flatnonzero(tree.query(x)[0] - reach < best)
             if near.size:
+                if self._pending is None:
+                    self._pending = TriangleSet(self.corner_points, self.layout.triangles)
                 hit = self._pending.closest(x[near])
                 nearer = hit.distance < best[near]
                 sel = near[nearer]

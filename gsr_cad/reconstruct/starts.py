@@ -71,13 +71,15 @@ def _gate(problem, genomes: tuple[tuple, tuple], deadline: float | None
             "gain": gain, "kept": bool(gain >= MIN_GAIN and start[1] * MIN_RATIO <= body[1])}, start[2]
 
 
-def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dict[str, Any]] | None:
+def structured_start(problem, deadline: float | None = None, max_faces: int | None = None
+                     ) -> tuple[tuple, dict[str, Any]] | None:
     """``(the start's genome, what was measured)``; the genome is the start's ops, its creases and the moves to its
     fit, so that a path with no time to fit it again starts from it as fitted (result.json ``lead_start``: ``path``,
     the kept start's refinement path or None, ``body_ops`` how many of its ops build its body (``prefixes``, added by
     the refinement: :func:`start_prefixes`' points), and per kind ``leads`` / ``blocks`` what was found and the
     gate's figures); the genome is empty when no start is kept. None when the template is
-    not a placed cube, nothing is found or ops a start needs are not allowed (:data:`START_OPS`)."""
+    not a placed cube, nothing is found, ops a start needs are not allowed (:data:`START_OPS`) or every start found
+    has more faces than ``max_faces`` (the refinement's face budget: such a start is no cage it may grow)."""
     axes = cube_frame(problem.template)
     if axes is None or not START_OPS <= set(problem.config.op_kinds):
         return None
@@ -91,6 +93,8 @@ def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dic
     blocks = find_blocks(problem.target, axes)
     if blocks is not None and (made := block_genomes(problem, blocks, axes)) is not None:
         starts.append((BLOCK_PATH, "blocks", made[:2], {"found": len(blocks.blocks), "grown": made[2]}))
+    if max_faces is not None:
+        starts = [start for start in starts if all(_within(problem, g, max_faces) for g in start[2][:2])]
     if not starts:
         return None
     best: tuple[float, str, tuple, PolyMesh] | None = None
@@ -136,6 +140,14 @@ def structured_start(problem, deadline: float | None = None) -> tuple[tuple, dic
         genome += tuple(moves)
     info["seconds"] = time.perf_counter() - started
     return genome, info
+
+
+def _within(problem, genome: tuple, max_faces: int) -> bool:
+    """Whether ``genome``'s cage has at most ``max_faces`` faces (a cage the problem's face limit refuses has not)."""
+    try:
+        return problem.control_mesh(genome).n_faces <= max_faces
+    except GsrError:
+        return False
 
 
 def _template_box(problem, deadline: float | None) -> tuple[int, float, PolyMesh] | None:

@@ -1788,7 +1788,7 @@ def _refined(problem: SurfaceProblem, genome: tuple, goal: float, deadline: floa
     path = "winner" if genome else "template"
     stopped = (lambda: False) if should_stop is None else should_stop
     # a leaded part's second path starts from its body and legs, where they gain on the body alone (module leads)
-    lead = structured_start(grower, deadline) if quads and not stopped() else None
+    lead = structured_start(grower, deadline, faces) if quads and not stopped() else None
     other_start = lead[0] if lead is not None else ()
     start_path = lead[1]["path"] if other_start else None
     # with a second CPU the template grows beside the winner (module second_path); else after it, in time left.
