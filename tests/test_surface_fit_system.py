@@ -7,7 +7,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gsr_cad.reconstruct.surface import POINT_WEIGHT, _normal_equations, _solve_spd
+from gsr_cad.reconstruct.surface import CG_UNKNOWNS, POINT_WEIGHT, _cg_step, _normal_equations, _solve_spd
 
 
 def _dense_normal_equations(A: np.ndarray, normals: np.ndarray, goal: np.ndarray, weight: np.ndarray):
@@ -65,3 +65,42 @@ def test_the_symmetric_solve_matches_a_dense_one(seed):
 def test_a_singular_system_gives_no_step():
     A = sp.csc_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
     assert np.isnan(_solve_spd(A, np.array([1.0, 1.0]))).all()
+
+
+def _split_cube_system(splits: int, damping: float):
+    """A fit round's damped normal equations on a split cube's cage (valence-3 corners, refined locally), its
+    target points the limit surface's samples moved off it."""
+    from gsr_cad.geometry import subdivision
+    from gsr_cad.geometry.limit_surface import LimitSurface, get_layout
+    from gsr_cad.geometry.polymesh import unit_cube
+
+    cube = unit_cube()
+    mesh = subdivision.get_catmull_clark(cube, splits, "all").refine(cube.vertices)
+    surface = LimitSurface(get_layout(mesh, "all", 5), mesh.vertices)
+    rng = np.random.default_rng(splits)
+    on = surface.samples()[0].point
+    points = on[rng.integers(0, len(on), 6000)] + rng.normal(0.0, 0.02, (6000, 3))
+    hits = surface.closest(points)
+    H, g = _normal_equations(surface.rows(hits), hits.normal, points, np.full(6000, 1.0 / 6000))
+    return (H + damping * float(H.diagonal().mean()) * sp.identity(H.shape[0], format="csc")).tocsc(), g
+
+
+def test_conjugate_gradients_give_the_factored_step_on_a_large_cage():
+    """The solve of cages of CG_UNKNOWNS and more: block-Jacobi conjugate gradients against SuperLU's factor."""
+    A, g = _split_cube_system(4, 1e-3)
+    assert A.shape[0] >= CG_UNKNOWNS
+    exact = _solve_spd(A, g)
+    step = _cg_step(A, g)
+    assert step is not None
+    assert np.abs(step - exact).max() <= 1e-4 * np.abs(exact).max()
+
+
+def test_conjugate_gradients_that_do_not_converge_leave_the_solve_to_the_factor():
+    rng = np.random.default_rng(0)
+    n = 300
+    Q = np.linalg.qr(rng.normal(size=(3 * n, 3 * n)))[0]
+    # eigenvalues spread over twelve decades: more iterations than CG_ITERATIONS to a residual of 1e-8
+    stiff = sp.csc_matrix(Q @ np.diag(np.logspace(-12, 0, 3 * n)) @ Q.T)
+    assert _cg_step(stiff, rng.normal(size=3 * n)) is None
+    singular = sp.csc_matrix((3 * n, 3 * n))
+    assert _cg_step(singular, np.ones(3 * n)) is None
